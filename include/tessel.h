@@ -1,0 +1,372 @@
+/*
+ * tessel — surface reconstruction from 3D point clouds.
+ *
+ * The whole public API. Conventions:
+ *  - Every function that can fail returns a tessel_status (TESSEL_OK == 0).
+ *    Functions that parse input also fill an optional tessel_diag naming the
+ *    file and the line or byte offset of the problem.
+ *  - Arrays are plain pointers with their shape documented ("count*3 floats").
+ *    Structs returned to the caller own their arrays; free them with the
+ *    matching *_free() function. Freeing a zeroed struct or NULL is a no-op.
+ *  - Lengths in params structs are multiples of the cloud's mean spacing
+ *    (mean distance from a point to its nearest neighbour) unless the field
+ *    says otherwise.
+ *  - The library never prints and never exits. Progress and log messages go
+ *    through tessel_callbacks; a non-zero return from progress cancels.
+ *  - No mutable global state: every function is reentrant. Threaded stages
+ *    use OpenMP and give bit-identical results for any thread count.
+ */
+#ifndef TESSEL_H
+#define TESSEL_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define TESSEL_VERSION_MAJOR 0
+#define TESSEL_VERSION_MINOR 1
+#define TESSEL_VERSION_PATCH 0
+#define TESSEL_VERSION_STRING "0.1.0"
+
+#if defined(_WIN32) && defined(TESSEL_SHARED_BUILD)
+#define TESSEL_API __declspec(dllexport)
+#elif defined(__GNUC__)
+#define TESSEL_API __attribute__((visibility("default")))
+#else
+#define TESSEL_API
+#endif
+
+/* ------------------------------------------------------------------------ */
+/* Status codes                                                              */
+/* ------------------------------------------------------------------------ */
+
+/* X-macro table: one place defines the enum and its strings. */
+#define TESSEL_STATUS_LIST(X)                                                  \
+    X(TESSEL_OK, "ok")                                                         \
+    X(TESSEL_ERR_INVALID_ARG, "invalid argument")                              \
+    X(TESSEL_ERR_NOMEM, "out of memory")                                       \
+    X(TESSEL_ERR_IO, "input/output error")                                     \
+    X(TESSEL_ERR_PARSE, "malformed input")                                     \
+    X(TESSEL_ERR_UNSUPPORTED, "unsupported format or feature")                 \
+    X(TESSEL_ERR_LIMIT, "size limit exceeded")                                 \
+    X(TESSEL_ERR_TOO_FEW_POINTS, "not enough points")                          \
+    X(TESSEL_ERR_CANCELLED, "cancelled")                                       \
+    X(TESSEL_ERR_INTERNAL, "internal error")
+
+typedef enum tessel_status {
+#define TESSEL_X_ENUM(name, str) name,
+    TESSEL_STATUS_LIST(TESSEL_X_ENUM)
+#undef TESSEL_X_ENUM
+    TESSEL_STATUS_COUNT
+} tessel_status;
+
+/* A static, human-readable string for a status ("unknown status" if out of
+ * range). Never NULL. */
+TESSEL_API const char *tessel_status_str(tessel_status status);
+
+/* Library version as "MAJOR.MINOR.PATCH". */
+TESSEL_API const char *tessel_version(void);
+
+/* Where and why parsing or writing failed. Filled by functions that take a
+ * tessel_diag* (which may be NULL). Fixed-size buffers: no allocation. */
+typedef struct tessel_diag {
+    char file[512];      /* path or the name given to a parser; "" if none */
+    uint64_t line;       /* 1-based line number for text input; 0 if n/a */
+    uint64_t offset;     /* byte offset for binary input; meaningful if has_offset */
+    int has_offset;      /* 1 when offset is set */
+    char message[512];   /* what is wrong, e.g. "expected 3 coordinates, got 2" */
+} tessel_diag;
+
+/* ------------------------------------------------------------------------ */
+/* Callbacks                                                                 */
+/* ------------------------------------------------------------------------ */
+
+typedef enum tessel_log_level {
+    TESSEL_LOG_DEBUG = 0,
+    TESSEL_LOG_INFO = 1,
+    TESSEL_LOG_WARNING = 2
+} tessel_log_level;
+
+/* One record for progress and logging; every member may be NULL.
+ * progress: stage is a short static name ("read", "normals", "greedy"...),
+ *   fraction in [0,1]. Called at most a few hundred times per stage, never
+ *   from inside an OpenMP parallel region. Return non-zero to cancel: the
+ *   running function then returns TESSEL_ERR_CANCELLED.
+ * log: one message per call, never from a hot loop. */
+typedef struct tessel_callbacks {
+    int (*progress)(void *user_data, const char *stage, double fraction);
+    void (*log)(void *user_data, tessel_log_level level, const char *message);
+    void *user_data;
+} tessel_callbacks;
+
+/* Marks an absent index (missing grid cell, no neighbour). */
+#define TESSEL_NONE UINT32_MAX
+
+/* ------------------------------------------------------------------------ */
+/* Point clouds and meshes                                                   */
+/* ------------------------------------------------------------------------ */
+
+/* A point cloud. World coordinates of point i are offset + xyz[3i..3i+2]:
+ * float positions in a local frame, a double offset so georeferenced data
+ * (UTM, ECEF) keep their precision. Readers choose the offset (see
+ * docs/formats.md): 0 for ordinary data, an integer near the minimum corner
+ * when coordinates exceed 4096 in magnitude. */
+typedef struct tessel_cloud {
+    size_t count;        /* number of points */
+    float *xyz;          /* count*3 floats, local coordinates */
+    float *normals;      /* count*3 floats (unit length) or NULL */
+    uint8_t *rgb;        /* count*3 bytes or NULL */
+    double offset[3];    /* added to xyz to get world coordinates */
+
+    /* Organized clouds (depth cameras, PCD width x height, PLY
+     * "comment organized W H"): width*height grid cells in row-major order;
+     * grid[cell] is the index of the point at that cell or TESSEL_NONE where
+     * the scanner returned nothing (NaN in the file). grid is NULL and
+     * width == height == 0 for unorganized clouds. */
+    uint32_t width, height;
+    uint32_t *grid;
+
+    /* Scanner position in world coordinates (PCD VIEWPOINT, PLY
+     * "comment viewpoint X Y Z"), valid when has_viewpoint is 1. */
+    double viewpoint[3];
+    int has_viewpoint;
+
+    /* Points the reader dropped because a coordinate was NaN or infinite. */
+    size_t dropped_nonfinite;
+} tessel_cloud;
+
+/* A triangle mesh. Vertex i is at offset + xyz[3i..3i+2]. Triangles are
+ * counter-clockwise seen from outside (right-hand rule gives the normal). */
+typedef struct tessel_mesh {
+    size_t vertex_count;
+    float *xyz;            /* vertex_count*3 floats */
+    float *normals;        /* vertex_count*3 floats or NULL */
+    uint8_t *rgb;          /* vertex_count*3 bytes or NULL */
+    double offset[3];
+    size_t triangle_count;
+    uint32_t *triangles;   /* triangle_count*3 vertex indices */
+} tessel_mesh;
+
+/* Allocates a cloud of count points (xyz zeroed; normals / colours only when
+ * asked). On failure *cloud is left zeroed. */
+TESSEL_API tessel_status tessel_cloud_alloc(tessel_cloud *cloud, size_t count,
+                                            int with_normals, int with_rgb);
+/* Frees the arrays and zeroes the struct. NULL and zeroed structs are fine. */
+TESSEL_API void tessel_cloud_free(tessel_cloud *cloud);
+/* Deep copy. */
+TESSEL_API tessel_status tessel_cloud_copy(tessel_cloud *dst, const tessel_cloud *src);
+
+TESSEL_API tessel_status tessel_mesh_alloc(tessel_mesh *mesh, size_t vertex_count,
+                                           size_t triangle_count, int with_normals,
+                                           int with_rgb);
+TESSEL_API void tessel_mesh_free(tessel_mesh *mesh);
+
+/* ------------------------------------------------------------------------ */
+/* File formats                                                              */
+/* ------------------------------------------------------------------------ */
+
+typedef enum tessel_format {
+    TESSEL_FORMAT_AUTO = 0, /* from the file name's extension, then content */
+    TESSEL_FORMAT_PLY,
+    TESSEL_FORMAT_XYZ,      /* .xyz .pts .txt .asc: whitespace separated */
+    TESSEL_FORMAT_CSV,      /* .csv: comma separated */
+    TESSEL_FORMAT_OBJ,
+    TESSEL_FORMAT_OFF,
+    TESSEL_FORMAT_STL,      /* write only: binary STL */
+    TESSEL_FORMAT_PCD,      /* read only: ascii and binary (uncompressed) */
+    TESSEL_FORMAT_LAS       /* read only: LAS 1.0-1.4, point formats 0-10 */
+} tessel_format;
+
+/* Short lower-case name ("ply", "xyz", ...). */
+TESSEL_API const char *tessel_format_name(tessel_format format);
+/* Format from a path's extension (case-insensitive); AUTO if unknown. */
+TESSEL_API tessel_format tessel_format_from_path(const char *path);
+
+/* Limits that protect readers against hostile headers. Defaults are large
+ * enough for real scans (2^31 points) and small enough that a lying header
+ * cannot make the reader allocate more than the data can fill. */
+typedef struct tessel_read_params {
+    tessel_format format;    /* AUTO by default */
+    uint64_t max_points;     /* default 2^31 - 1 */
+    uint64_t max_faces;      /* default 2^31 - 1 */
+} tessel_read_params;
+TESSEL_API tessel_read_params tessel_read_params_default(void);
+
+typedef struct tessel_write_params {
+    tessel_format format;    /* AUTO: from the extension */
+    int ascii;               /* PLY only: 1 writes ascii; default 0 (binary LE) */
+    int write_normals;       /* write normals when present; default 1 */
+    int write_rgb;           /* write colours when present; default 1 */
+} tessel_write_params;
+TESSEL_API tessel_write_params tessel_write_params_default(void);
+
+/* Parse a cloud from memory. `name` is used in diagnostics only (may be
+ * NULL). For mesh formats the vertices are read and faces skipped. With
+ * format AUTO, the content decides (PLY, OFF, PCD, LAS magic; else OBJ if it
+ * has "v " lines; else XYZ/CSV). On error *cloud is zeroed. */
+TESSEL_API tessel_status tessel_cloud_parse(tessel_cloud *cloud, const void *data,
+                                            size_t size, const char *name,
+                                            const tessel_read_params *params,
+                                            tessel_diag *diag);
+/* Read a cloud from a file (params may be NULL for defaults). */
+TESSEL_API tessel_status tessel_cloud_read(tessel_cloud *cloud, const char *path,
+                                           const tessel_read_params *params,
+                                           tessel_diag *diag);
+/* Parse / read a mesh (PLY, OBJ, OFF). Polygons with more than three
+ * vertices are split into fans. A point format gives a mesh with no
+ * triangles. */
+TESSEL_API tessel_status tessel_mesh_parse(tessel_mesh *mesh, const void *data,
+                                           size_t size, const char *name,
+                                           const tessel_read_params *params,
+                                           tessel_diag *diag);
+TESSEL_API tessel_status tessel_mesh_read(tessel_mesh *mesh, const char *path,
+                                          const tessel_read_params *params,
+                                          tessel_diag *diag);
+
+/* Writers go to a temporary file in the destination's folder and rename it
+ * over the destination only once everything was written: a failed write
+ * never leaves a partial file. params may be NULL. */
+TESSEL_API tessel_status tessel_cloud_write(const tessel_cloud *cloud, const char *path,
+                                            const tessel_write_params *params,
+                                            tessel_diag *diag);
+TESSEL_API tessel_status tessel_mesh_write(const tessel_mesh *mesh, const char *path,
+                                           const tessel_write_params *params,
+                                           tessel_diag *diag);
+
+/* Where a reconstruction sends its triangles as soon as they are final.
+ * emit receives count triangles (count*3 indices into the input cloud) and
+ * returns TESSEL_OK to continue; any other status aborts the caller, which
+ * returns that status. */
+typedef struct tessel_triangle_sink {
+    tessel_status (*emit)(void *user_data, const uint32_t *triangles, size_t count);
+    void *user_data;
+} tessel_triangle_sink;
+
+/* Streaming mesh writer: the vertices are the given cloud's points, the
+ * triangles arrive in batches and are spooled to a temporary file, so memory
+ * stays flat however many triangles come. close() writes the final file
+ * (vertices not used by any triangle are dropped when compact is set) and
+ * renames it into place; abort() removes every temporary. Formats: PLY, OBJ,
+ * OFF, STL. */
+typedef struct tessel_mesh_writer tessel_mesh_writer;
+
+TESSEL_API tessel_status tessel_mesh_writer_open(tessel_mesh_writer **writer,
+                                                 const char *path,
+                                                 const tessel_cloud *vertices,
+                                                 const tessel_write_params *params,
+                                                 int compact, tessel_diag *diag);
+TESSEL_API tessel_status tessel_mesh_writer_add(tessel_mesh_writer *writer,
+                                                const uint32_t *triangles, size_t count);
+/* Finishes the file; the writer is freed whatever the result. */
+TESSEL_API tessel_status tessel_mesh_writer_close(tessel_mesh_writer *writer,
+                                                  tessel_diag *diag);
+/* Discards everything; the destination is left untouched. NULL is fine. */
+TESSEL_API void tessel_mesh_writer_abort(tessel_mesh_writer *writer);
+/* A sink that feeds tessel_mesh_writer_add. */
+TESSEL_API tessel_triangle_sink tessel_mesh_writer_sink(tessel_mesh_writer *writer);
+
+/* ------------------------------------------------------------------------ */
+/* Neighbour search                                                          */
+/* ------------------------------------------------------------------------ */
+
+/* An exact spatial index (kd-tree) over count points. It keeps a pointer to
+ * xyz: the array must outlive the index and stay unchanged. Queries are
+ * thread-safe and never allocate. */
+typedef struct tessel_index tessel_index;
+
+TESSEL_API tessel_status tessel_index_build(tessel_index **index, const float *xyz,
+                                            size_t count);
+TESSEL_API void tessel_index_destroy(tessel_index *index);
+
+/* The k nearest points to q (k <= count), sorted by squared distance, ties
+ * by increasing index; a point equal to q is included. Writes min(k, count)
+ * entries to idx and dist2 (dist2 may be NULL) and returns that number. */
+TESSEL_API size_t tessel_index_knn(const tessel_index *index, const float q[3],
+                                   size_t k, uint32_t *idx, float *dist2);
+
+/* All points with squared distance <= radius^2 from q, sorted like knn.
+ * Writes at most cap of them (the nearest) and returns how many there are
+ * in all (which may exceed cap). */
+TESSEL_API size_t tessel_index_radius(const tessel_index *index, const float q[3],
+                                      float radius, uint32_t *idx, float *dist2,
+                                      size_t cap);
+
+/* knn for every query point, threaded: idx and dist2 (may be NULL) have
+ * query_count*k slots; rows of points with fewer than k neighbours are
+ * padded with TESSEL_NONE / INFINITY. threads: 0 = OpenMP default (honours
+ * OMP_NUM_THREADS). */
+TESSEL_API tessel_status tessel_index_knn_batch(const tessel_index *index,
+                                                const float *queries, size_t query_count,
+                                                size_t k, uint32_t *idx, float *dist2,
+                                                int threads);
+
+/* ------------------------------------------------------------------------ */
+/* Cloud statistics and clean-up                                             */
+/* ------------------------------------------------------------------------ */
+
+typedef struct tessel_stats_params {
+    size_t sample_size;        /* spacing is measured on at most this many
+                                  points (evenly strided); default 100000 */
+    uint32_t outlier_k;        /* neighbours for the density test; default 8 */
+    double outlier_factor;     /* a point is an isolated outlier when its mean
+                                  distance to its outlier_k neighbours exceeds
+                                  this many times the cloud's median of that
+                                  quantity; default 5 */
+    int threads;               /* 0 = OpenMP default */
+} tessel_stats_params;
+TESSEL_API tessel_stats_params tessel_stats_params_default(void);
+
+typedef struct tessel_cloud_stats {
+    double bbox_min[3], bbox_max[3]; /* world coordinates */
+    double diagonal;                 /* bounding-box diagonal */
+    double mean_spacing;             /* mean nearest-neighbour distance
+                                        (excluding exact duplicates) */
+    double median_spacing;
+    size_t exact_duplicates;         /* points equal to an earlier point */
+    size_t outliers;                 /* isolated points by local density */
+} tessel_cloud_stats;
+
+TESSEL_API tessel_status tessel_cloud_stats_compute(const tessel_cloud *cloud,
+                                                    const tessel_stats_params *params,
+                                                    tessel_cloud_stats *stats);
+
+/* Mean nearest-neighbour spacing of a cloud (sampled like the stats). The
+ * unit of every "multiple of the spacing" parameter. */
+TESSEL_API tessel_status tessel_cloud_spacing(const tessel_cloud *cloud, double *spacing);
+
+/* Merges points closer than tolerance (absolute length; 0 merges exact
+ * duplicates only) into the first of them, in input order, keeping normals
+ * and colours of the kept point. Writes the number removed to *removed
+ * (may be NULL). Order of the kept points is preserved. */
+TESSEL_API tessel_status tessel_cloud_merge_duplicates(tessel_cloud *cloud,
+                                                       double tolerance,
+                                                       size_t *removed);
+
+/* ------------------------------------------------------------------------ */
+/* Normals                                                                   */
+/* ------------------------------------------------------------------------ */
+
+typedef struct tessel_normals_params {
+    uint32_t k;          /* neighbours for the PCA plane; default 16 (3..256) */
+    int orient;          /* 1: consistent orientation by a minimum spanning
+                            tree over the k-NN graph (Hoppe et al. 1992),
+                            outward on closed surfaces; 0: PCA sign as is.
+                            Default 1. */
+    int threads;         /* 0 = OpenMP default */
+} tessel_normals_params;
+TESSEL_API tessel_normals_params tessel_normals_params_default(void);
+
+/* Estimates unit normals for every point (allocating cloud->normals if
+ * NULL, overwriting them otherwise). */
+TESSEL_API tessel_status tessel_normals_estimate(tessel_cloud *cloud,
+                                                 const tessel_normals_params *params,
+                                                 const tessel_callbacks *callbacks);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* TESSEL_H */
