@@ -365,6 +365,89 @@ TESSEL_API tessel_status tessel_normals_estimate(tessel_cloud *cloud,
                                                  const tessel_normals_params *params,
                                                  const tessel_callbacks *callbacks);
 
+/* ------------------------------------------------------------------------ */
+/* Mesh check (src/check.c)                                                  */
+/* ------------------------------------------------------------------------ */
+
+typedef struct tessel_check_params {
+    int self_intersections;      /* 1: test every nearby triangle pair exactly
+                                    (bounding-box culling + robust orientation
+                                    predicates); default 1 */
+    const tessel_cloud *input;   /* optional: the cloud the mesh was made from */
+    const tessel_mesh *reference;/* optional: the true surface */
+    double tau;                  /* F-score threshold, absolute length; 0 means
+                                    1% of the reference's bounding-box diagonal
+                                    (as meshcheck); default 0 */
+    uint32_t samples;            /* surface samples per mesh for Chamfer /
+                                    Hausdorff / F-score; default 200000 */
+    int threads;                 /* 0 = OpenMP default */
+} tessel_check_params;
+TESSEL_API tessel_check_params tessel_check_params_default(void);
+
+typedef struct tessel_mesh_report {
+    size_t vertices, triangles;
+    size_t unreferenced_vertices;
+    size_t components;              /* edge-connected triangle components */
+    size_t edges;                   /* distinct undirected edges */
+    size_t boundary_edges;          /* edges with one triangle */
+    size_t boundary_loops;
+    size_t nonmanifold_edges;       /* edges with more than two triangles */
+    size_t nonmanifold_vertices;    /* vertices whose triangles form more than
+                                       one fan */
+    size_t orientation_conflicts;   /* manifold edges used twice in the same
+                                       direction */
+    int oriented;                   /* 1 when orientation_conflicts == 0 */
+    size_t self_intersections;      /* intersecting pairs of triangles that share
+                                       no vertex, or that overlap beyond their
+                                       shared vertex/edge; -1 cast if not run */
+    size_t duplicate_triangles;     /* same vertex set as an earlier one */
+    size_t degenerate_triangles;    /* repeated index or zero area */
+    long euler;                     /* V - E + F over referenced vertices */
+    long genus;                     /* for closed, manifold, connected meshes;
+                                       -1 otherwise */
+    double min_angle_deg, max_angle_deg, mean_min_angle_deg;
+    /* With params->input: */
+    size_t input_points;
+    size_t input_as_vertices;       /* input points that are mesh vertices */
+    double input_distance_mean, input_distance_max; /* input point to mesh */
+    /* With params->reference: */
+    double chamfer, hausdorff;      /* symmetric, world units */
+    double precision, recall, fscore; /* percent, at tau */
+    double tau;
+} tessel_mesh_report;
+
+/* Measures a mesh. Returns TESSEL_OK even when the mesh is not valid: the
+ * report says what is wrong. tessel_mesh_report_valid() is true for a
+ * manifold, consistently oriented mesh with no self-intersection, duplicate
+ * or degenerate triangle. */
+TESSEL_API tessel_status tessel_mesh_check(const tessel_mesh *mesh,
+                                           const tessel_check_params *params,
+                                           tessel_mesh_report *report);
+TESSEL_API int tessel_mesh_report_valid(const tessel_mesh_report *report);
+
+/* ------------------------------------------------------------------------ */
+/* Rendering (src/render.c)                                                  */
+/* ------------------------------------------------------------------------ */
+
+/* ------------------------------------------------------------------------ */
+/* Greedy projection reconstruction (src/greedy.c)                           */
+/* ------------------------------------------------------------------------ */
+
+/* ------------------------------------------------------------------------ */
+/* Fixed-plane reconstruction for height fields, range scans and organized   */
+/* grids (src/fixed_plane.c)                                                 */
+/* ------------------------------------------------------------------------ */
+
+/* ------------------------------------------------------------------------ */
+/* Noisy clouds: robust smoothing, clustering, reduction (src/smooth.c,      */
+/* src/cluster.c, src/simplify.c)                                            */
+/* ------------------------------------------------------------------------ */
+
+/* ------------------------------------------------------------------------ */
+/* Noisy clouds: advancing front and refinement (src/advancing_front.c,      */
+/* src/refine.c)                                                             */
+/* ------------------------------------------------------------------------ */
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,84 @@
+/* Shared pieces of the tessel command-line tool: exit codes, error
+ * printing, option parsing helpers and the terminal progress bar. Each
+ * subcommand lives in tools/cmd_<name>.c and is listed in tools/tessel.c. */
+#ifndef TESSEL_CLI_H
+#define TESSEL_CLI_H
+
+#include "tessel.h"
+
+#include <stdbool.h>
+#include <stdio.h>
+
+/* Documented exit codes (see tessel --help and the README). */
+enum {
+    CLI_OK = 0,
+    CLI_USAGE = 1,        /* bad command line */
+    CLI_INPUT_ERROR = 2,  /* input file missing or malformed */
+    CLI_OUTPUT_ERROR = 3, /* output could not be written */
+    CLI_FAILURE = 4       /* the computation failed or was cancelled */
+};
+
+/* Options every subcommand accepts; parsed by cli_common_option(). */
+typedef struct cli_common {
+    int threads;   /* --threads N; 0 = OpenMP default (OMP_NUM_THREADS) */
+    bool quiet;    /* --quiet: no progress, no summary */
+    bool json;     /* --json: machine-readable summary on stdout */
+} cli_common;
+
+/* A subcommand: argv[0] is the subcommand's name. Returns an exit code. */
+typedef int (*cli_command_fn)(int argc, char **argv);
+
+/* Prints "tessel: error: MESSAGE" to stderr. */
+void cli_error(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+/* Prints a library error with its diagnostic:
+ * "tessel: error: FILE: line 12: MESSAGE" (or "byte 345"). */
+void cli_error_status(tessel_status status, const tessel_diag *diag, const char *path);
+/* Exit code for a failed read / write / computation status. */
+int cli_exit_for_read(tessel_status status);
+int cli_exit_for_write(tessel_status status);
+
+/* If argv[*i] is a common option (--threads N, --quiet, --json), consumes
+ * it (and its value) and returns 1; 0 when it is not one; -1 on a bad
+ * value (after printing the error). */
+int cli_common_option(cli_common *common, int argc, char **argv, int *i);
+/* Help text for the common options, for each subcommand's --help. */
+extern const char cli_common_help[];
+
+/* Parses a number option value; prints an error and returns false when
+ * it is not a finite number / a non-negative integer within range. */
+bool cli_parse_double(const char *opt, const char *text, double *out);
+bool cli_parse_int(const char *opt, const char *text, long min, long max, long *out);
+
+/* Applies --threads to OpenMP for the whole process (respecting
+ * OMP_NUM_THREADS when it is 0). */
+void cli_apply_threads(const cli_common *common);
+
+/* Progress reporting: a bar on stderr when it is a terminal (stage,
+ * percent, rate, time left), otherwise one line per finished stage; nothing
+ * with --quiet. cli_callbacks() returns a record for library calls. */
+typedef struct cli_progress {
+    bool enabled, tty;
+    const char *stage;
+    double stage_start, last_draw;
+    size_t items;              /* work items of the current stage, for rates */
+} cli_progress;
+void cli_progress_init(cli_progress *p, const cli_common *common);
+tessel_callbacks cli_callbacks(cli_progress *p);
+/* Sets how many items (points) the current stage processes, for points/s. */
+void cli_progress_items(cli_progress *p, size_t items);
+/* Ends the current stage's line. */
+void cli_progress_done(cli_progress *p);
+
+/* Wall-clock seconds (monotonic). */
+double cli_now(void);
+
+/* Subcommands. */
+int cmd_info(int argc, char **argv);
+int cmd_convert(int argc, char **argv);
+int cmd_normals(int argc, char **argv);
+
+#endif /* TESSEL_CLI_H */
