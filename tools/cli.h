@@ -65,13 +65,18 @@ typedef struct cli_progress {
     const char *stage;
     double stage_start, last_draw;
     size_t items;              /* work items of the current stage, for rates */
+    size_t pending_items;      /* items of the next stage to start */
 } cli_progress;
 void cli_progress_init(cli_progress *p, const cli_common *common);
 tessel_callbacks cli_callbacks(cli_progress *p);
-/* Sets how many items (points) the current stage processes, for points/s. */
+/* Sets how many items (points) the next stage to start processes, for the
+ * points/s figure. */
 void cli_progress_items(cli_progress *p, size_t items);
 /* Ends the current stage's line. */
 void cli_progress_done(cli_progress *p);
+
+/* Writes s as a JSON string literal (quoted, escaped). */
+void cli_json_string(FILE *out, const char *s);
 
 /* Wall-clock seconds (monotonic). */
 double cli_now(void);

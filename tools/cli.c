@@ -1,0 +1,255 @@
+/* Shared CLI plumbing: error printing in the house format, common options,
+ * the progress bar. */
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+const char cli_common_help[] =
+    "Common options:\n"
+    "  --threads N   worker threads (default: OMP_NUM_THREADS, else all cores)\n"
+    "  --quiet       no progress bar and no summary\n"
+    "  --json        print the summary as one JSON object on stdout\n"
+    "  --help        this text\n"
+    "Exit codes: 0 ok, 1 usage, 2 input error, 3 output error, 4 failure.\n";
+
+void cli_error(const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fputs("tessel: error: ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+void cli_error_status(tessel_status status, const tessel_diag *diag, const char *path)
+{
+    const char *file = (diag && diag->file[0]) ? diag->file : path;
+    fputs("tessel: error: ", stderr);
+    if (file && *file)
+        fprintf(stderr, "%s: ", file);
+    if (diag && diag->line)
+        fprintf(stderr, "line %llu: ", (unsigned long long)diag->line);
+    else if (diag && diag->has_offset)
+        fprintf(stderr, "byte %llu: ", (unsigned long long)diag->offset);
+    if (diag && diag->message[0])
+        fprintf(stderr, "%s\n", diag->message);
+    else
+        fprintf(stderr, "%s\n", tessel_status_str(status));
+}
+
+int cli_exit_for_read(tessel_status status)
+{
+    if (status == TESSEL_ERR_NOMEM || status == TESSEL_ERR_CANCELLED ||
+        status == TESSEL_ERR_INTERNAL)
+        return CLI_FAILURE;
+    return CLI_INPUT_ERROR;
+}
+
+int cli_exit_for_write(tessel_status status)
+{
+    if (status == TESSEL_ERR_NOMEM || status == TESSEL_ERR_CANCELLED ||
+        status == TESSEL_ERR_INTERNAL)
+        return CLI_FAILURE;
+    return CLI_OUTPUT_ERROR;
+}
+
+bool cli_parse_double(const char *opt, const char *text, double *out)
+{
+    char *end = NULL;
+    errno = 0;
+    double v = text ? strtod(text, &end) : 0.0;
+    if (!text || end == text || *end != '\0' || errno == ERANGE || !isfinite(v)) {
+        cli_error("%s expects a number, got '%s'", opt, text ? text : "");
+        return false;
+    }
+    *out = v;
+    return true;
+}
+
+bool cli_parse_int(const char *opt, const char *text, long min, long max, long *out)
+{
+    char *end = NULL;
+    errno = 0;
+    long v = text ? strtol(text, &end, 10) : 0;
+    if (!text || end == text || *end != '\0' || errno == ERANGE || v < min || v > max) {
+        cli_error("%s expects a whole number from %ld to %ld, got '%s'", opt, min, max,
+                  text ? text : "");
+        return false;
+    }
+    *out = v;
+    return true;
+}
+
+int cli_common_option(cli_common *common, int argc, char **argv, int *i)
+{
+    const char *a = argv[*i];
+    if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
+        common->quiet = true;
+        return 1;
+    }
+    if (strcmp(a, "--json") == 0) {
+        common->json = true;
+        return 1;
+    }
+    if (strcmp(a, "--threads") == 0 || strcmp(a, "-j") == 0) {
+        if (*i + 1 >= argc) {
+            cli_error("%s needs a value", a);
+            return -1;
+        }
+        long n;
+        if (!cli_parse_int(a, argv[*i + 1], 0, 4096, &n))
+            return -1;
+        common->threads = (int)n;
+        (*i)++;
+        return 1;
+    }
+    return 0;
+}
+
+void cli_apply_threads(const cli_common *common)
+{
+#ifdef _OPENMP
+    if (common->threads > 0)
+        omp_set_num_threads(common->threads);
+#else
+    (void)common;
+#endif
+}
+
+void cli_json_string(FILE *out, const char *s)
+{
+    fputc('"', out);
+    for (; *s; s++) {
+        unsigned char c = (unsigned char)*s;
+        if (c == '"' || c == '\\')
+            fprintf(out, "\\%c", c);
+        else if (c < 0x20)
+            fprintf(out, "\\u%04x", c);
+        else
+            fputc(c, out);
+    }
+    fputc('"', out);
+}
+
+double cli_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---- progress ---- */
+
+void cli_progress_init(cli_progress *p, const cli_common *common)
+{
+    memset(p, 0, sizeof *p);
+    p->enabled = !common->quiet;
+    p->tty = isatty(STDERR_FILENO) != 0;
+}
+
+static void format_duration(char *buf, size_t size, double seconds)
+{
+    if (!(seconds >= 0) || seconds > 359999)
+        snprintf(buf, size, "--:--");
+    else if (seconds >= 3600)
+        snprintf(buf, size, "%d:%02d:%02d", (int)seconds / 3600, ((int)seconds / 60) % 60,
+                 (int)seconds % 60);
+    else
+        snprintf(buf, size, "%d:%02d", (int)seconds / 60, (int)seconds % 60);
+}
+
+static void draw_bar(cli_progress *p, double fraction, double now)
+{
+    const int width = 30;
+    int filled = (int)(fraction * width + 0.5);
+    char bar[64];
+    for (int i = 0; i < width; i++)
+        bar[i] = i < filled ? '#' : '.';
+    bar[width] = '\0';
+    double elapsed = now - p->stage_start;
+    char left[32] = "--:--";
+    if (fraction > 0.02)
+        format_duration(left, sizeof left, elapsed * (1.0 - fraction) / fraction);
+    char rate[48] = "";
+    if (p->items && elapsed > 0)
+        snprintf(rate, sizeof rate, "  %.2fM pts/s",
+                 fraction * (double)p->items / elapsed / 1e6);
+    fprintf(stderr, "\r%-10s [%s] %3d%%%s  left %s   ", p->stage, bar,
+            (int)(fraction * 100.0 + 0.5), rate, left);
+    fflush(stderr);
+}
+
+static void end_stage(cli_progress *p, double now)
+{
+    if (!p->stage)
+        return;
+    double elapsed = now - p->stage_start;
+    char rate[48] = "";
+    if (p->items && elapsed > 0)
+        snprintf(rate, sizeof rate, ", %.2fM pts/s", (double)p->items / elapsed / 1e6);
+    if (p->tty) {
+        draw_bar(p, 1.0, now);
+        fprintf(stderr, "\r%-10s done in %.2f s%s%*s\n", p->stage, elapsed, rate, 40, "");
+    } else {
+        fprintf(stderr, "%s: done in %.2f s%s\n", p->stage, elapsed, rate);
+    }
+    p->stage = NULL;
+    p->items = 0;
+}
+
+static int progress_cb(void *user, const char *stage, double fraction)
+{
+    cli_progress *p = user;
+    if (!p->enabled)
+        return 0;
+    double now = cli_now();
+    if (!p->stage || strcmp(p->stage, stage) != 0) {
+        end_stage(p, now);
+        p->stage = stage;
+        p->stage_start = now;
+        p->last_draw = 0;
+        p->items = p->pending_items;
+        p->pending_items = 0;
+    }
+    if (p->tty && (now - p->last_draw > 0.1 || fraction >= 1.0)) {
+        draw_bar(p, fraction < 0 ? 0 : fraction > 1 ? 1 : fraction, now);
+        p->last_draw = now;
+    }
+    return 0;
+}
+
+static void log_cb(void *user, tessel_log_level level, const char *message)
+{
+    cli_progress *p = user;
+    if (!p->enabled || level == TESSEL_LOG_DEBUG)
+        return;
+    if (p->tty && p->stage)
+        fputc('\n', stderr);
+    fprintf(stderr, "tessel: %s%s\n", level == TESSEL_LOG_WARNING ? "warning: " : "",
+            message);
+}
+
+tessel_callbacks cli_callbacks(cli_progress *p)
+{
+    tessel_callbacks cb = {progress_cb, log_cb, p};
+    return cb;
+}
+
+void cli_progress_items(cli_progress *p, size_t items) { p->pending_items = items; }
+
+void cli_progress_done(cli_progress *p)
+{
+    if (p->enabled)
+        end_stage(p, cli_now());
+}
