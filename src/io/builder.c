@@ -1,0 +1,379 @@
+/* The reader back end shared by every format: parsers push raw
+ * double-precision points and polygons, and finishing applies, once for all
+ * formats, the rules of docs/formats.md:
+ *  - points with a NaN or infinite coordinate are dropped and counted
+ *    (faces using one are dropped too, the others are renumbered);
+ *  - organized clouds (width*height set by the parser) get a grid that maps
+ *    every cell to its kept point or TESSEL_NONE;
+ *  - the per-axis double offset is chosen by tsl_choose_offset from the
+ *    bounding box of the finite points, and xyz is stored as
+ *    float(world - offset), rounded so that a round trip through a writer
+ *    gives back the very same floats and offset (see local_coord).
+ * Storage grows geometrically; the double array is converted to floats in
+ * place, so finishing needs no second copy of the points. */
+#include "io_internal.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Coordinates inside [-4096, 4097) keep offset 0: floats resolve ~0.5 mm
+ * there, and ordinary data stays untouched. */
+#define OFFSET_LIMIT 4096.0
+
+void tsl_builder_init(tsl_builder *b, const tessel_read_params *params)
+{
+    memset(b, 0, sizeof *b);
+    tessel_read_params def = tessel_read_params_default();
+    if (!params)
+        params = &def;
+    b->max_points = params->max_points;
+    b->max_faces = params->max_faces;
+    /* Indices are uint32 and TESSEL_NONE is reserved. */
+    if (b->max_points > (uint64_t)UINT32_MAX - 1)
+        b->max_points = (uint64_t)UINT32_MAX - 1;
+}
+
+void tsl_builder_free(tsl_builder *b)
+{
+    if (!b)
+        return;
+    free(b->xyz);
+    free(b->normals);
+    free(b->rgb);
+    free(b->tris);
+    uint64_t mp = b->max_points, mf = b->max_faces;
+    memset(b, 0, sizeof *b);
+    b->max_points = mp;
+    b->max_faces = mf;
+}
+
+/* Resizes every point array to new_cap points. */
+static tessel_status resize_points(tsl_builder *b, size_t new_cap)
+{
+    size_t bytes;
+    if (!tsl_mul_size(new_cap, 3 * sizeof(double), &bytes))
+        return TESSEL_ERR_NOMEM;
+    double *xyz = realloc(b->xyz, bytes ? bytes : 1);
+    if (!xyz)
+        return TESSEL_ERR_NOMEM;
+    b->xyz = xyz;
+    if (b->has_normals) {
+        float *n = realloc(b->normals, new_cap * 3 * sizeof(float) + 1);
+        if (!n)
+            return TESSEL_ERR_NOMEM;
+        b->normals = n;
+    }
+    if (b->has_rgb) {
+        uint8_t *c = realloc(b->rgb, new_cap * 3 + 1);
+        if (!c)
+            return TESSEL_ERR_NOMEM;
+        b->rgb = c;
+    }
+    b->cap = new_cap;
+    return TESSEL_OK;
+}
+
+tessel_status tsl_builder_attributes(tsl_builder *b, int has_normals, int has_rgb)
+{
+    /* Declared late (after points): earlier points get zero attributes. */
+    if (has_normals && !b->has_normals) {
+        float *n = tsl_calloc_array(b->cap ? b->cap : 1, 3 * sizeof(float));
+        if (!n)
+            return TESSEL_ERR_NOMEM;
+        b->normals = n;
+        b->has_normals = 1;
+    }
+    if (has_rgb && !b->has_rgb) {
+        uint8_t *c = tsl_calloc_array(b->cap ? b->cap : 1, 3);
+        if (!c)
+            return TESSEL_ERR_NOMEM;
+        b->rgb = c;
+        b->has_rgb = 1;
+    }
+    if (!has_normals && b->has_normals && b->count == 0) {
+        free(b->normals);
+        b->normals = NULL;
+        b->has_normals = 0;
+    }
+    if (!has_rgb && b->has_rgb && b->count == 0) {
+        free(b->rgb);
+        b->rgb = NULL;
+        b->has_rgb = 0;
+    }
+    return TESSEL_OK;
+}
+
+tessel_status tsl_builder_reserve(tsl_builder *b, size_t points, size_t triangles)
+{
+    if ((uint64_t)points > b->max_points || (uint64_t)triangles > b->max_faces)
+        return TESSEL_ERR_LIMIT;
+    if (points > b->cap) {
+        tessel_status st = resize_points(b, points);
+        if (st != TESSEL_OK)
+            return st;
+    }
+    if (triangles > b->tri_cap) {
+        size_t bytes;
+        if (!tsl_mul_size(triangles, 3 * sizeof(uint32_t), &bytes))
+            return TESSEL_ERR_NOMEM;
+        uint32_t *t = realloc(b->tris, bytes);
+        if (!t)
+            return TESSEL_ERR_NOMEM;
+        b->tris = t;
+        b->tri_cap = triangles;
+    }
+    return TESSEL_OK;
+}
+
+tessel_status tsl_builder_point(tsl_builder *b, const double xyz[3], const float *normal,
+                                const uint8_t *rgb)
+{
+    if (b->count == b->cap) {
+        if ((uint64_t)b->count >= b->max_points)
+            return TESSEL_ERR_LIMIT;
+        size_t new_cap = b->cap < 1024 ? 1024 : b->cap + b->cap / 2;
+        if ((uint64_t)new_cap > b->max_points)
+            new_cap = (size_t)b->max_points;
+        tessel_status st = resize_points(b, new_cap);
+        if (st != TESSEL_OK)
+            return st;
+    }
+    size_t i = b->count;
+    memcpy(b->xyz + 3 * i, xyz, 3 * sizeof(double));
+    if (b->has_normals) {
+        if (normal)
+            memcpy(b->normals + 3 * i, normal, 3 * sizeof(float));
+        else
+            memset(b->normals + 3 * i, 0, 3 * sizeof(float));
+    }
+    if (b->has_rgb) {
+        if (rgb)
+            memcpy(b->rgb + 3 * i, rgb, 3);
+        else
+            memset(b->rgb + 3 * i, 0, 3);
+    }
+    b->count++;
+    return TESSEL_OK;
+}
+
+tessel_status tsl_builder_polygon(tsl_builder *b, const uint32_t *idx, size_t n)
+{
+    if (n < 3)
+        return TESSEL_OK;
+    size_t add = n - 2;
+    if ((uint64_t)b->tri_count + add > b->max_faces)
+        return TESSEL_ERR_LIMIT;
+    size_t need = b->tri_count + add;
+    if (need > b->tri_cap) {
+        size_t new_cap = b->tri_cap < 1024 ? 1024 : b->tri_cap + b->tri_cap / 2;
+        if (new_cap < need)
+            new_cap = need;
+        if ((uint64_t)new_cap > b->max_faces)
+            new_cap = (size_t)b->max_faces;
+        size_t bytes;
+        if (!tsl_mul_size(new_cap, 3 * sizeof(uint32_t), &bytes))
+            return TESSEL_ERR_NOMEM;
+        uint32_t *t = realloc(b->tris, bytes);
+        if (!t)
+            return TESSEL_ERR_NOMEM;
+        b->tris = t;
+        b->tri_cap = new_cap;
+    }
+    uint32_t *t = b->tris + 3 * b->tri_count;
+    for (size_t k = 1; k + 1 < n; k++) {
+        t[0] = idx[0];
+        t[1] = idx[k];
+        t[2] = idx[k + 1];
+        t += 3;
+    }
+    b->tri_count = need;
+    return TESSEL_OK;
+}
+
+double tsl_choose_offset(double lo, double hi)
+{
+    if (!(lo <= hi) || !isfinite(lo) || !isfinite(hi))
+        return 0.0;
+    if (lo >= -OFFSET_LIMIT && hi < OFFSET_LIMIT + 1.0)
+        return 0.0;
+    /* One below floor(lo): every local coordinate is >= 1, where floats
+     * are fine enough that offset + f is exact in double; so the integer
+     * part of the minimum, and with it the offset, survives a round trip. */
+    return floor(lo) - 1.0;
+}
+
+/* float(world - offset), rounded to nearest but never up across an
+ * integer: the integer parts of the bounding box (all tsl_choose_offset
+ * looks at) are then the same after a round trip through a writer. */
+static float local_coord(double world, double offset)
+{
+    double d = world - offset;
+    float f = (float)d;
+    if (floor((double)f) > floor(d))
+        f = nextafterf(f, -INFINITY);
+    return f;
+}
+
+static bool point_finite(const double *p)
+{
+    return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
+}
+
+/* Drops non-finite points (compacting all arrays), fills remap (old index
+ * -> new or TESSEL_NONE) when given, chooses the offset and converts xyz to
+ * floats in place (b->xyz then holds count*3 floats). */
+static void compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
+                                    size_t *dropped)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY};
+    double hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    size_t kept = 0;
+    for (size_t i = 0; i < b->count; i++) {
+        const double *p = b->xyz + 3 * i;
+        if (!point_finite(p)) {
+            if (remap)
+                remap[i] = TESSEL_NONE;
+            continue;
+        }
+        for (int a = 0; a < 3; a++) {
+            if (p[a] < lo[a])
+                lo[a] = p[a];
+            if (p[a] > hi[a])
+                hi[a] = p[a];
+        }
+        if (remap)
+            remap[i] = (uint32_t)kept;
+        if (kept != i) {
+            memmove(b->xyz + 3 * kept, p, 3 * sizeof(double));
+            if (b->has_normals)
+                memmove(b->normals + 3 * kept, b->normals + 3 * i, 3 * sizeof(float));
+            if (b->has_rgb)
+                memmove(b->rgb + 3 * kept, b->rgb + 3 * i, 3);
+        }
+        kept++;
+    }
+    *dropped = b->count - kept;
+    for (int a = 0; a < 3; a++)
+        offset[a] = kept ? tsl_choose_offset(lo[a], hi[a]) : 0.0;
+    /* In place: float j lands at byte 4j, below double j's byte 8j, which
+     * has been read already. memcpy keeps it free of aliasing trouble. */
+    unsigned char *mem = (unsigned char *)b->xyz;
+    for (size_t j = 0; j < 3 * kept; j++) {
+        double w;
+        memcpy(&w, mem + 8 * j, sizeof w);
+        float f = local_coord(w, offset[j % 3]);
+        memcpy(mem + 4 * j, &f, sizeof f);
+    }
+    b->count = kept;
+}
+
+/* Shrinks the arrays to count points; failures to shrink are harmless. */
+static void shrink(void **p, size_t bytes)
+{
+    void *q = realloc(*p, bytes ? bytes : 1);
+    if (q)
+        *p = q;
+}
+
+tessel_status tsl_builder_finish_cloud(tsl_builder *b, tessel_cloud *cloud)
+{
+    memset(cloud, 0, sizeof *cloud);
+    uint32_t *grid = NULL;
+    size_t cells = (size_t)b->width * b->height;
+    if (b->width && b->height) {
+        if (cells != b->count)
+            return TESSEL_ERR_PARSE; /* parsers check this with a message */
+        grid = tsl_alloc_array(cells, sizeof(uint32_t));
+        if (!grid)
+            return TESSEL_ERR_NOMEM;
+    }
+    size_t dropped = 0;
+    compact_points(b, grid, cloud->offset, &dropped);
+    size_t n = b->count;
+    shrink((void **)&b->xyz, n * 3 * sizeof(float));
+    cloud->xyz = (float *)(void *)b->xyz;
+    if (b->has_normals) {
+        shrink((void **)&b->normals, n * 3 * sizeof(float));
+        cloud->normals = b->normals;
+    }
+    if (b->has_rgb) {
+        shrink((void **)&b->rgb, n * 3);
+        cloud->rgb = b->rgb;
+    }
+    cloud->count = n;
+    cloud->dropped_nonfinite = dropped;
+    if (grid) {
+        cloud->grid = grid;
+        cloud->width = b->width;
+        cloud->height = b->height;
+    }
+    if (b->has_viewpoint) {
+        memcpy(cloud->viewpoint, b->viewpoint, sizeof cloud->viewpoint);
+        cloud->has_viewpoint = 1;
+    }
+    b->xyz = NULL;
+    b->normals = NULL;
+    b->rgb = NULL;
+    tsl_builder_free(b);
+    return TESSEL_OK;
+}
+
+tessel_status tsl_builder_finish_mesh(tsl_builder *b, tessel_mesh *mesh)
+{
+    memset(mesh, 0, sizeof *mesh);
+    size_t original = b->count;
+    for (size_t t = 0; t < 3 * b->tri_count; t++)
+        if (b->tris[t] >= original)
+            return TESSEL_ERR_INTERNAL; /* parsers validate indices */
+    uint32_t *remap = NULL;
+    bool any_nonfinite = false;
+    for (size_t i = 0; i < original && !any_nonfinite; i++)
+        any_nonfinite = !point_finite(b->xyz + 3 * i);
+    if (any_nonfinite && b->tri_count) {
+        remap = tsl_alloc_array(original, sizeof(uint32_t));
+        if (!remap)
+            return TESSEL_ERR_NOMEM;
+    }
+    size_t dropped = 0;
+    compact_points(b, remap, mesh->offset, &dropped);
+    size_t tris = b->tri_count;
+    if (remap) {
+        size_t kept = 0;
+        for (size_t t = 0; t < b->tri_count; t++) {
+            uint32_t a = remap[b->tris[3 * t]], c = remap[b->tris[3 * t + 1]],
+                     d = remap[b->tris[3 * t + 2]];
+            if (a == TESSEL_NONE || c == TESSEL_NONE || d == TESSEL_NONE)
+                continue;
+            b->tris[3 * kept] = a;
+            b->tris[3 * kept + 1] = c;
+            b->tris[3 * kept + 2] = d;
+            kept++;
+        }
+        tris = kept;
+        free(remap);
+    }
+    size_t n = b->count;
+    shrink((void **)&b->xyz, n * 3 * sizeof(float));
+    mesh->xyz = (float *)(void *)b->xyz;
+    if (b->has_normals) {
+        shrink((void **)&b->normals, n * 3 * sizeof(float));
+        mesh->normals = b->normals;
+    }
+    if (b->has_rgb) {
+        shrink((void **)&b->rgb, n * 3);
+        mesh->rgb = b->rgb;
+    }
+    if (b->tris)
+        shrink((void **)&b->tris, tris * 3 * sizeof(uint32_t));
+    mesh->triangles = b->tris;
+    mesh->vertex_count = n;
+    mesh->triangle_count = tris;
+    b->xyz = NULL;
+    b->normals = NULL;
+    b->rgb = NULL;
+    b->tris = NULL;
+    tsl_builder_free(b);
+    return TESSEL_OK;
+}
