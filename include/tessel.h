@@ -385,41 +385,85 @@ typedef struct tessel_check_params {
 TESSEL_API tessel_check_params tessel_check_params_default(void);
 
 typedef struct tessel_mesh_report {
+    /* Definitions follow the evaluator meshcheck (docs/check.md). A
+     * triangle is degenerate when it repeats an index or its three corners
+     * are exactly collinear. Topology ignores triangles with a repeated
+     * index; zero-area ones take part. */
     size_t vertices, triangles;
-    size_t unreferenced_vertices;
+    size_t unreferenced_vertices;   /* used by no triangle */
     size_t components;              /* edge-connected triangle components */
     size_t edges;                   /* distinct undirected edges */
     size_t boundary_edges;          /* edges with one triangle */
-    size_t boundary_loops;
+    size_t boundary_loops;          /* connected components of the graph of
+                                       boundary edges */
     size_t nonmanifold_edges;       /* edges with more than two triangles */
-    size_t nonmanifold_vertices;    /* vertices whose triangles form more than
-                                       one fan */
-    size_t orientation_conflicts;   /* manifold edges used twice in the same
-                                       direction */
+    size_t nonmanifold_vertices;    /* vertices whose link (the opposite
+                                       edges of their triangles) is not one
+                                       path or one cycle */
+    size_t orientation_conflicts;   /* edges with two triangles that run it in
+                                       the same direction */
     int oriented;                   /* 1 when orientation_conflicts == 0 */
-    size_t self_intersections;      /* intersecting pairs of triangles that share
-                                       no vertex, or that overlap beyond their
-                                       shared vertex/edge; -1 cast if not run */
+    int orientable;                 /* 1 when flipping whole triangles could
+                                       make every two-triangle edge
+                                       consistent (a flipped triangle is
+                                       orientable but not oriented) */
+    size_t self_intersections;      /* pairs of non-degenerate triangles that
+                                       meet anywhere if they share no vertex,
+                                       beyond the shared vertex or edge
+                                       otherwise (bit-identical vertices
+                                       count as shared); decided exactly.
+                                       SIZE_MAX when not run */
+    size_t self_intersecting_triangles; /* triangles in such a pair;
+                                       SIZE_MAX when not run */
     size_t duplicate_triangles;     /* same vertex set as an earlier one */
     size_t degenerate_triangles;    /* repeated index or zero area */
-    long euler;                     /* V - E + F over referenced vertices */
-    long genus;                     /* for closed, manifold, connected meshes;
-                                       -1 otherwise */
-    double min_angle_deg, max_angle_deg, mean_min_angle_deg;
-    /* With params->input: */
+    long euler;                     /* V - E + F, V counting vertices of the
+                                       triangles without repeated index */
+    long genus;                     /* sum over components of (2 - chi)/2,
+                                       given for closed (no boundary),
+                                       manifold, orientable meshes; -1
+                                       otherwise */
+    /* Over non-degenerate triangles (NaN when there are none): */
+    double min_angle_deg;           /* smallest angle of any triangle */
+    double max_angle_deg;           /* largest angle of any triangle */
+    double mean_min_angle_deg;      /* mean of each triangle's smallest angle */
+    double area;                    /* total area, world units squared */
+    double bbox_diagonal;           /* of the vertices used by triangles (all
+                                       vertices if there are no triangles) */
+    /* With params->input (NaN / 0 otherwise): */
     size_t input_points;
-    size_t input_as_vertices;       /* input points that are mesh vertices */
-    double input_distance_mean, input_distance_max; /* input point to mesh */
-    /* With params->reference: */
-    double chamfer, hausdorff;      /* symmetric, world units */
-    double precision, recall, fscore; /* percent, at tau */
-    double tau;
+    size_t input_as_vertices;       /* input points within 1e-9 of the
+                                       input's bbox diagonal of a mesh vertex
+                                       used by a triangle */
+    double input_distance_mean, input_distance_rms, input_distance_max;
+                                    /* input point to mesh surface, world
+                                       units */
+    double input_bbox_diagonal;
+    /* With params->reference (NaN otherwise); both surfaces are sampled
+     * uniformly by area, params->samples points each, fixed seeds: */
+    double accuracy;                /* mean distance mesh samples -> reference */
+    double completeness;            /* mean distance reference samples -> mesh */
+    double chamfer;                 /* (accuracy + completeness) / 2 */
+    double hausdorff;               /* largest sample distance either way */
+    double precision, recall, fscore; /* percent of mesh samples within tau
+                                       of the reference, of reference samples
+                                       within tau of the mesh, and their
+                                       harmonic mean */
+    double tau;                     /* absolute threshold used */
+    double reference_bbox_diagonal;
 } tessel_mesh_report;
 
-/* Measures a mesh. Returns TESSEL_OK even when the mesh is not valid: the
- * report says what is wrong. tessel_mesh_report_valid() is true for a
- * manifold, consistently oriented mesh with no self-intersection, duplicate
- * or degenerate triangle. */
+/* Measures a mesh (params may be NULL for defaults). Returns TESSEL_OK
+ * even when the mesh is not valid: the report says what is wrong. Fails with
+ * TESSEL_ERR_INVALID_ARG when a triangle index is out of range, a vertex used
+ * by a triangle is not finite, or the reference has no non-degenerate
+ * triangle; TESSEL_ERR_LIMIT beyond 2^32-1 vertices or 2^31-1 triangles.
+ * Distances are computed in the mesh's local frame (other offsets are
+ * converted). Deterministic for any thread count.
+ * tessel_mesh_report_valid() is true for a mesh with at least one triangle
+ * that is manifold (boundaries allowed), consistently oriented, and has no
+ * self-intersection (when they were checked), duplicate or degenerate
+ * triangle. */
 TESSEL_API tessel_status tessel_mesh_check(const tessel_mesh *mesh,
                                            const tessel_check_params *params,
                                            tessel_mesh_report *report);

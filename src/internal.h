@@ -100,4 +100,18 @@ static inline void tsl_load(const float *p, double out[3])
  * covariances, which is where normals are decided. */
 void tsl_eigen_sym3(const double a[9], double w[3], double v[9]);
 
+/* ---- robust orientation predicates (src/predicates.c, Shewchuk 1997) ----
+ * The SIGN of the result is exact (filtered double evaluation, exact
+ * expansion arithmetic when the filter cannot decide); the magnitude is an
+ * approximation. Exact for any inputs whose products neither overflow nor
+ * underflow, which covers every float coordinate.
+ * tsl_orient2d: > 0 when a, b, c turn counter-clockwise, < 0 clockwise, 0
+ *   when collinear (twice the signed area of abc).
+ * tsl_orient3d: > 0 when d lies below the plane through a, b, c, "below"
+ *   meaning a, b, c appear counter-clockwise seen from above; < 0 above; 0
+ *   when coplanar (det[a-d; b-d; c-d], six times the signed volume). */
+double tsl_orient2d(const double a[2], const double b[2], const double c[2]);
+double tsl_orient3d(const double a[3], const double b[3], const double c[3],
+                    const double d[3]);
+
 #endif /* TESSEL_INTERNAL_H */

@@ -1,0 +1,1572 @@
+/* Mesh check: topology, validity and accuracy figures of a triangle mesh.
+ *
+ * Every figure follows the definitions of the independent evaluator our
+ * results are compared with (meshcheck; docs/check.md lists them), so the
+ * numbers agree on the same file:
+ *  - Topology (edges, boundary, manifoldness, orientation, components,
+ *    Euler characteristic, genus) uses vertex indices as given and ignores
+ *    triangles with a repeated index; zero-area triangles take part.
+ *    Edges are grouped by bucketing half-edges on their smaller vertex.
+ *    A vertex is manifold when the link formed by the opposite edges of its
+ *    triangles is one path or one cycle. Orientability is decided by
+ *    2-colouring triangles with a union-find that carries parities.
+ *  - Degenerate triangles: a repeated index, or three exactly collinear
+ *    vertices (robust orientation predicates, src/predicates.c).
+ *  - Self-intersections: pairs of non-degenerate triangles whose bounding
+ *    boxes overlap (found with a bounding volume hierarchy over the boxes,
+ *    Morton-ordered as in Lauterbach et al. 2009, "Fast BVH construction on
+ *    GPUs") are tested exactly: closed triangles meet iff an edge of one
+ *    meets the other, and a segment meets a triangle iff it reaches the
+ *    triangle's plane and the line through it passes every edge on the same
+ *    side (signs of orient3d, Plücker-style); coplanar configurations are
+ *    decided with orient2d in a coordinate projection where the triangle
+ *    stays non-degenerate. Vertices with bit-identical coordinates count as
+ *    one; a pair that shares an edge intersects only when the two triangles
+ *    are coplanar and fold onto the same side of it, a pair sharing a vertex
+ *    only when the edge opposite that vertex in one meets the other.
+ *  - Distances (--input, --reference) are exact point-to-triangle distances
+ *    (Ericson, "Real-Time Collision Detection", section 5.1.5) through the
+ *    same hierarchy. Surfaces are sampled uniformly by area with
+ *    MT19937-64 (Matsumoto & Nishimura 1998; Nishimura 2000) and fixed
+ *    seeds, as the evaluator does, so the same samples are drawn.
+ * Work is threaded with OpenMP over triangles and samples; every sum is
+ * taken in index order afterwards, so results do not depend on the thread
+ * count. */
+#include "internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+enum { KIND_OK = 0, KIND_REPEATED = 1, KIND_ZERO_AREA = 2 };
+
+/* Seeds of the evaluator's two sample sets (mesh side, reference side). */
+#define SEED_MESH_SAMPLES 0x5eed0001ULL
+#define SEED_REF_SAMPLES 0x5eed0002ULL
+
+tessel_check_params tessel_check_params_default(void)
+{
+    tessel_check_params p;
+    memset(&p, 0, sizeof p);
+    p.self_intersections = 1;
+    p.input = NULL;
+    p.reference = NULL;
+    p.tau = 0.0;
+    p.samples = 200000;
+    p.threads = 0;
+    return p;
+}
+
+int tessel_mesh_report_valid(const tessel_mesh_report *r)
+{
+    if (!r || r->triangles == 0)
+        return 0;
+    return r->nonmanifold_edges == 0 && r->nonmanifold_vertices == 0 &&
+           r->orientation_conflicts == 0 && r->duplicate_triangles == 0 &&
+           r->degenerate_triangles == 0 &&
+           (r->self_intersections == 0 || r->self_intersections == SIZE_MAX);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Small helpers                                                             */
+/* ------------------------------------------------------------------------ */
+
+static inline int sgn(double x) { return (x > 0.0) - (x < 0.0); }
+
+/* Exact collinearity of three points: all three coordinate projections
+ * have zero orientation. */
+static bool collinear3(const double a[3], const double b[3], const double c[3])
+{
+    for (int drop = 0; drop < 3; drop++) {
+        int u = (drop + 1) % 3, v = (drop + 2) % 3;
+        double pa[2] = {a[u], a[v]}, pb[2] = {b[u], b[v]}, pc[2] = {c[u], c[v]};
+        if (tsl_orient2d(pa, pb, pc) != 0.0)
+            return false;
+    }
+    return true;
+}
+
+/* Union-find with path halving; the smaller index becomes the root. */
+static uint32_t uf_find(uint32_t *p, uint32_t x)
+{
+    while (p[x] != x) {
+        p[x] = p[p[x]];
+        x = p[x];
+    }
+    return x;
+}
+static void uf_unite(uint32_t *p, uint32_t a, uint32_t b)
+{
+    a = uf_find(p, a);
+    b = uf_find(p, b);
+    if (a < b)
+        p[b] = a;
+    else if (b < a)
+        p[a] = b;
+}
+
+/* Union-find whose links carry the parity "flipped relative to parent". */
+typedef struct parity_uf {
+    uint32_t *parent, *size;
+    uint8_t *par;
+} parity_uf;
+
+static uint32_t puf_find(parity_uf *u, uint32_t x, uint8_t *parity)
+{
+    uint32_t r = x;
+    uint8_t acc = 0;
+    while (u->parent[r] != r) {
+        acc ^= u->par[r];
+        r = u->parent[r];
+    }
+    /* Compress, keeping each node's parity relative to the root. */
+    uint8_t cur = acc;
+    for (uint32_t y = x; u->parent[y] != y;) {
+        uint32_t next = u->parent[y];
+        uint8_t py = u->par[y];
+        u->parent[y] = r;
+        u->par[y] = cur;
+        cur ^= py;
+        y = next;
+    }
+    *parity = acc;
+    return r;
+}
+
+/* Requires parity(a) ^ parity(b) == d; false on a contradiction. */
+static bool puf_unite(parity_uf *u, uint32_t a, uint32_t b, uint8_t d)
+{
+    uint8_t pa, pb;
+    uint32_t ra = puf_find(u, a, &pa), rb = puf_find(u, b, &pb);
+    if (ra == rb)
+        return (uint8_t)(pa ^ pb) == d;
+    if (u->size[ra] > u->size[rb]) {
+        uint32_t t = ra;
+        ra = rb;
+        rb = t;
+    }
+    u->parent[ra] = rb;
+    u->par[ra] = (uint8_t)(pa ^ pb ^ d);
+    u->size[rb] += u->size[ra];
+    return true;
+}
+
+/* Stable LSD radix sort of 64-bit keys (16-bit digits); tmp has n slots.
+ * Digits that are the same in every key are skipped. */
+static tessel_status radix_sort_u64(uint64_t *keys, uint64_t *tmp, size_t n)
+{
+    size_t *count = tsl_calloc_array(65536, sizeof *count);
+    if (!count)
+        return TESSEL_ERR_NOMEM;
+    uint64_t *src = keys, *dst = tmp;
+    for (int shift = 0; shift < 64; shift += 16) {
+        memset(count, 0, 65536 * sizeof *count);
+        for (size_t i = 0; i < n; i++)
+            count[(src[i] >> shift) & 0xffff]++;
+        if (n == 0 || count[(src[0] >> shift) & 0xffff] == n)
+            continue;
+        size_t sum = 0;
+        for (size_t d = 0; d < 65536; d++) {
+            size_t c = count[d];
+            count[d] = sum;
+            sum += c;
+        }
+        for (size_t i = 0; i < n; i++)
+            dst[count[(src[i] >> shift) & 0xffff]++] = src[i];
+        uint64_t *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != keys)
+        memcpy(keys, src, n * sizeof *keys);
+    free(count);
+    return TESSEL_OK;
+}
+
+/* Sorts a small array of (a, b) uint32 pairs lexicographically. Buckets are
+ * vertex stars, so insertion sort is right for all but pathological stars;
+ * those fall back to qsort. */
+typedef struct pair_u32 {
+    uint32_t a, b;
+} pair_u32;
+
+static int cmp_pair(const void *x, const void *y)
+{
+    const pair_u32 *p = x, *q = y;
+    if (p->a != q->a)
+        return p->a < q->a ? -1 : 1;
+    if (p->b != q->b)
+        return p->b < q->b ? -1 : 1;
+    return 0;
+}
+
+static void sort_pairs(pair_u32 *v, size_t n)
+{
+    if (n > 32) {
+        qsort(v, n, sizeof *v, cmp_pair);
+        return;
+    }
+    for (size_t i = 1; i < n; i++) {
+        pair_u32 x = v[i];
+        size_t j = i;
+        while (j > 0 && cmp_pair(&v[j - 1], &x) > 0) {
+            v[j] = v[j - 1];
+            j--;
+        }
+        v[j] = x;
+    }
+}
+
+/* ------------------------------------------------------------------------ */
+/* Bounding volume hierarchy over axis-aligned boxes                         */
+/* ------------------------------------------------------------------------ */
+
+#define BVH_LEAF 4
+#define BVH_STACK 96
+
+typedef struct bvh_node {
+    double lo[3], hi[3];
+    uint32_t start, count; /* leaf: order[start .. start+count) */
+    uint32_t right;        /* inner (count == 0): right child; left is next */
+} bvh_node;
+
+typedef struct bvh {
+    bvh_node *nodes;
+    uint32_t *order; /* primitive ids in leaf order */
+    size_t node_count;
+} bvh;
+
+static void bvh_free(bvh *b)
+{
+    free(b->nodes);
+    free(b->order);
+    memset(b, 0, sizeof *b);
+}
+
+/* Spreads the low 10 bits of x to every third bit. */
+static uint32_t morton_spread(uint32_t x)
+{
+    x &= 0x3ff;
+    x = (x | (x << 16)) & 0x030000ff;
+    x = (x | (x << 8)) & 0x0300f00f;
+    x = (x | (x << 4)) & 0x030c30c3;
+    x = (x | (x << 2)) & 0x09249249;
+    return x;
+}
+
+static uint32_t bvh_build_range(bvh *b, const double *box, uint32_t start, uint32_t end)
+{
+    uint32_t id = (uint32_t)b->node_count++;
+    bvh_node *nd = &b->nodes[id];
+    if (end - start <= BVH_LEAF) {
+        nd->start = start;
+        nd->count = end - start;
+        nd->right = 0;
+        for (int k = 0; k < 3; k++) {
+            nd->lo[k] = INFINITY;
+            nd->hi[k] = -INFINITY;
+        }
+        for (uint32_t i = start; i < end; i++) {
+            const double *bx = box + 6 * (size_t)b->order[i];
+            for (int k = 0; k < 3; k++) {
+                if (bx[k] < nd->lo[k])
+                    nd->lo[k] = bx[k];
+                if (bx[3 + k] > nd->hi[k])
+                    nd->hi[k] = bx[3 + k];
+            }
+        }
+        return id;
+    }
+    uint32_t mid = start + (end - start) / 2;
+    uint32_t left = bvh_build_range(b, box, start, mid);
+    uint32_t right = bvh_build_range(b, box, mid, end);
+    nd = &b->nodes[id];
+    nd->start = 0;
+    nd->count = 0;
+    nd->right = right;
+    for (int k = 0; k < 3; k++) {
+        nd->lo[k] = fmin(b->nodes[left].lo[k], b->nodes[right].lo[k]);
+        nd->hi[k] = fmax(b->nodes[left].hi[k], b->nodes[right].hi[k]);
+    }
+    return id;
+}
+
+/* Builds a hierarchy over n boxes (box[6i..6i+5] = lo xyz, hi xyz): boxes
+ * sorted by the Morton code of their centres (ties by id), halves split
+ * recursively. Deterministic; depth is ceil(log2(n / BVH_LEAF)) + 1. */
+static tessel_status bvh_build(bvh *b, const double *box, size_t n)
+{
+    memset(b, 0, sizeof *b);
+    if (n == 0)
+        return TESSEL_OK;
+    if (n >= UINT32_MAX / 2)
+        return TESSEL_ERR_LIMIT;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            double c = 0.5 * (box[6 * i + k] + box[6 * i + 3 + k]);
+            lo[k] = fmin(lo[k], c);
+            hi[k] = fmax(hi[k], c);
+        }
+    uint64_t *keys = tsl_alloc_array(n, sizeof *keys);
+    uint64_t *tmp = tsl_alloc_array(n, sizeof *tmp);
+    b->order = tsl_alloc_array(n, sizeof *b->order);
+    b->nodes = tsl_alloc_array(2 * n, sizeof *b->nodes);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!keys || !tmp || !b->order || !b->nodes)
+        goto fail;
+    double scale[3];
+    for (int k = 0; k < 3; k++)
+        scale[k] = hi[k] > lo[k] ? 1023.0 / (hi[k] - lo[k]) : 0.0;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t code = 0;
+        for (int k = 0; k < 3; k++) {
+            double c = 0.5 * (box[6 * i + k] + box[6 * i + 3 + k]);
+            double q = (c - lo[k]) * scale[k];
+            uint32_t qi = q > 0.0 ? (uint32_t)fmin(q, 1023.0) : 0u;
+            code |= morton_spread(qi) << k;
+        }
+        keys[i] = ((uint64_t)code << 32) | (uint64_t)i;
+    }
+    st = radix_sort_u64(keys, tmp, n);
+    if (st != TESSEL_OK)
+        goto fail;
+    for (size_t i = 0; i < n; i++)
+        b->order[i] = (uint32_t)(keys[i] & 0xffffffffu);
+    free(keys);
+    free(tmp);
+    bvh_build_range(b, box, 0, (uint32_t)n);
+    return TESSEL_OK;
+fail:
+    free(keys);
+    free(tmp);
+    bvh_free(b);
+    return st;
+}
+
+static inline bool boxes_overlap(const double *alo, const double *ahi, const double *blo,
+                                 const double *bhi)
+{
+    return alo[0] <= bhi[0] && blo[0] <= ahi[0] && alo[1] <= bhi[1] && blo[1] <= ahi[1] &&
+           alo[2] <= bhi[2] && blo[2] <= ahi[2];
+}
+
+static inline double box_dist2(const bvh_node *nd, const double q[3])
+{
+    double d2 = 0.0;
+    for (int k = 0; k < 3; k++) {
+        double d = 0.0;
+        if (q[k] < nd->lo[k])
+            d = nd->lo[k] - q[k];
+        else if (q[k] > nd->hi[k])
+            d = q[k] - nd->hi[k];
+        d2 += d * d;
+    }
+    return d2;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Exact intersection tests                                                  */
+/* ------------------------------------------------------------------------ */
+
+/* The coordinate axis to drop so that triangle abc (not collinear) projects
+ * to a non-degenerate triangle; the sign of its projected orientation goes
+ * to *orient. */
+static int projection_axis(const double a[3], const double b[3], const double c[3],
+                           int *orient)
+{
+    double u[3], v[3], n[3];
+    tsl_sub(b, a, u);
+    tsl_sub(c, a, v);
+    tsl_cross(u, v, n);
+    int first = 0;
+    if (fabs(n[1]) > fabs(n[first]))
+        first = 1;
+    if (fabs(n[2]) > fabs(n[first]))
+        first = 2;
+    for (int t = 0; t < 3; t++) {
+        int drop = (first + t) % 3;
+        int i = (drop + 1) % 3, j = (drop + 2) % 3;
+        double pa[2] = {a[i], a[j]}, pb[2] = {b[i], b[j]}, pc[2] = {c[i], c[j]};
+        int s = sgn(tsl_orient2d(pa, pb, pc));
+        if (s != 0) {
+            *orient = s;
+            return drop;
+        }
+    }
+    *orient = 0;
+    return 0;
+}
+
+static inline void project(const double p[3], int drop, double out[2])
+{
+    out[0] = p[(drop + 1) % 3];
+    out[1] = p[(drop + 2) % 3];
+}
+
+/* r on the closed segment pq, given that p, q, r are collinear. */
+static bool on_segment2(const double p[2], const double q[2], const double r[2])
+{
+    return fmin(p[0], q[0]) <= r[0] && r[0] <= fmax(p[0], q[0]) && fmin(p[1], q[1]) <= r[1] &&
+           r[1] <= fmax(p[1], q[1]);
+}
+
+/* Closed segments pq and ab meet (2D). */
+static bool segments_meet2(const double p[2], const double q[2], const double a[2],
+                           const double b[2])
+{
+    int d1 = sgn(tsl_orient2d(p, q, a)), d2 = sgn(tsl_orient2d(p, q, b));
+    int d3 = sgn(tsl_orient2d(a, b, p)), d4 = sgn(tsl_orient2d(a, b, q));
+    if (d1 * d2 < 0 && d3 * d4 < 0)
+        return true;
+    return (d1 == 0 && on_segment2(p, q, a)) || (d2 == 0 && on_segment2(p, q, b)) ||
+           (d3 == 0 && on_segment2(a, b, p)) || (d4 == 0 && on_segment2(a, b, q));
+}
+
+/* p in the closed triangle abc whose orientation sign is o (2D). */
+static bool in_triangle2(const double p[2], const double a[2], const double b[2],
+                         const double c[2], int o)
+{
+    return sgn(tsl_orient2d(a, b, p)) * o >= 0 && sgn(tsl_orient2d(b, c, p)) * o >= 0 &&
+           sgn(tsl_orient2d(c, a, p)) * o >= 0;
+}
+
+/* Closed segment pq meets closed triangle abc, all four in one plane. */
+static bool coplanar_segment_triangle(const double p[3], const double q[3], const double a[3],
+                                      const double b[3], const double c[3])
+{
+    int o;
+    int drop = projection_axis(a, b, c, &o);
+    double p2[2], q2[2], a2[2], b2[2], c2[2];
+    project(p, drop, p2);
+    project(q, drop, q2);
+    project(a, drop, a2);
+    project(b, drop, b2);
+    project(c, drop, c2);
+    return in_triangle2(p2, a2, b2, c2, o) || in_triangle2(q2, a2, b2, c2, o) ||
+           segments_meet2(p2, q2, a2, b2) || segments_meet2(p2, q2, b2, c2) ||
+           segments_meet2(p2, q2, c2, a2);
+}
+
+/* Closed segment pq (p != q) meets closed non-degenerate triangle abc. */
+static bool segment_triangle(const double p[3], const double q[3], const double a[3],
+                             const double b[3], const double c[3])
+{
+    int sp = sgn(tsl_orient3d(a, b, c, p)), sq = sgn(tsl_orient3d(a, b, c, q));
+    if (sp * sq > 0)
+        return false;
+    if (sp == 0 && sq == 0)
+        return coplanar_segment_triangle(p, q, a, b, c);
+    /* The segment reaches the plane at one point; the line through it hits
+     * the closed triangle iff it passes the three edges on the same side. */
+    int s1 = sgn(tsl_orient3d(p, q, a, b));
+    int s2 = sgn(tsl_orient3d(p, q, b, c));
+    int s3 = sgn(tsl_orient3d(p, q, c, a));
+    bool pos = s1 > 0 || s2 > 0 || s3 > 0;
+    bool neg = s1 < 0 || s2 < 0 || s3 < 0;
+    return !(pos && neg);
+}
+
+/* Closed non-degenerate triangles a and b meet. Intersecting closed
+ * triangles always have a point on an edge of one inside the other, so six
+ * segment tests decide; the plane-side test rejects most pairs first. */
+static bool triangles_meet(const double *a[3], const double *b[3])
+{
+    int s0 = sgn(tsl_orient3d(a[0], a[1], a[2], b[0]));
+    int s1 = sgn(tsl_orient3d(a[0], a[1], a[2], b[1]));
+    int s2 = sgn(tsl_orient3d(a[0], a[1], a[2], b[2]));
+    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+        return false;
+    s0 = sgn(tsl_orient3d(b[0], b[1], b[2], a[0]));
+    s1 = sgn(tsl_orient3d(b[0], b[1], b[2], a[1]));
+    s2 = sgn(tsl_orient3d(b[0], b[1], b[2], a[2]));
+    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+        return false;
+    for (int k = 0; k < 3; k++) {
+        if (segment_triangle(a[k], a[(k + 1) % 3], b[0], b[1], b[2]))
+            return true;
+        if (segment_triangle(b[k], b[(k + 1) % 3], a[0], a[1], a[2]))
+            return true;
+    }
+    return false;
+}
+
+/* Two non-degenerate triangles, given by canonical vertex ids ca, cb and
+ * coordinates pa, pb, intersect in more than their shared vertex or edge. */
+static bool faces_intersect(const uint32_t ca[3], const uint32_t cb[3], const double *pa[3],
+                            const double *pb[3])
+{
+    int shared = 0, ia[3], ib[3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (ca[i] == cb[j]) {
+                ia[shared] = i;
+                ib[shared] = j;
+                shared++;
+            }
+    if (shared == 3)
+        return false; /* a duplicate, counted as such */
+    if (shared == 2) {
+        /* Common edge pq: overlap iff coplanar and both apexes on the same
+         * side of pq. */
+        const double *p = pa[ia[0]], *q = pa[ia[1]];
+        const double *ra = pa[3 - ia[0] - ia[1]], *rb = pb[3 - ib[0] - ib[1]];
+        if (tsl_orient3d(p, q, ra, rb) != 0.0)
+            return false;
+        int o;
+        int drop = projection_axis(p, q, ra, &o);
+        double p2[2], q2[2], rb2[2];
+        project(p, drop, p2);
+        project(q, drop, q2);
+        project(rb, drop, rb2);
+        return sgn(tsl_orient2d(p2, q2, rb2)) == o;
+    }
+    if (shared == 1) {
+        /* Common vertex: intersect iff the edge opposite it in one triangle
+         * meets the other triangle. */
+        int i = ia[0], j = ib[0];
+        return segment_triangle(pb[(j + 1) % 3], pb[(j + 2) % 3], pa[0], pa[1], pa[2]) ||
+               segment_triangle(pa[(i + 1) % 3], pa[(i + 2) % 3], pb[0], pb[1], pb[2]);
+    }
+    return triangles_meet(pa, pb);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Distances and sampling                                                    */
+/* ------------------------------------------------------------------------ */
+
+/* Squared distance from p to triangle abc (Ericson 5.1.5: Voronoi regions
+ * of the vertices, then edges, then the face). */
+static double point_triangle_dist2(const double p[3], const double a[3], const double b[3],
+                                   const double c[3])
+{
+    double ab[3], ac[3], ap[3], bp[3], cp[3], x[3];
+    tsl_sub(b, a, ab);
+    tsl_sub(c, a, ac);
+    tsl_sub(p, a, ap);
+    double d1 = tsl_dot(ab, ap), d2 = tsl_dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        x[0] = a[0], x[1] = a[1], x[2] = a[2];
+        goto done;
+    }
+    tsl_sub(p, b, bp);
+    double d3 = tsl_dot(ab, bp), d4 = tsl_dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+        x[0] = b[0], x[1] = b[1], x[2] = b[2];
+        goto done;
+    }
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        double v = d1 / (d1 - d3);
+        for (int k = 0; k < 3; k++)
+            x[k] = a[k] + v * ab[k];
+        goto done;
+    }
+    tsl_sub(p, c, cp);
+    double d5 = tsl_dot(ab, cp), d6 = tsl_dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+        x[0] = c[0], x[1] = c[1], x[2] = c[2];
+        goto done;
+    }
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        double w = d2 / (d2 - d6);
+        for (int k = 0; k < 3; k++)
+            x[k] = a[k] + w * ac[k];
+        goto done;
+    }
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int k = 0; k < 3; k++)
+            x[k] = b[k] + w * (c[k] - b[k]);
+        goto done;
+    }
+    {
+        double denom = 1.0 / (va + vb + vc);
+        double v = vb * denom, w = vc * denom;
+        for (int k = 0; k < 3; k++)
+            x[k] = a[k] + ab[k] * v + ac[k] * w;
+    }
+done:;
+    double d[3];
+    tsl_sub(p, x, d);
+    return tsl_dot(d, d);
+}
+
+/* Usable triangles of a mesh for distances and sampling: non-degenerate,
+ * with a finite non-zero normal; coordinates in the checked mesh's local
+ * frame; cumulative areas in order; a hierarchy over their boxes. */
+typedef struct surface {
+    size_t count;
+    double *tri;  /* count*9 */
+    double *cum;  /* count, running sum of areas */
+    bvh tree;
+} surface;
+
+static void surface_free(surface *s)
+{
+    free(s->tri);
+    free(s->cum);
+    bvh_free(&s->tree);
+    memset(s, 0, sizeof *s);
+}
+
+/* shift: added to m's local coordinates to bring them into the frame of the
+ * checked mesh. kind: per-triangle classification of m. */
+static tessel_status surface_build(surface *s, const tessel_mesh *m, const uint8_t *kind,
+                                   const double shift[3])
+{
+    memset(s, 0, sizeof *s);
+    size_t n = 0;
+    for (size_t f = 0; f < m->triangle_count; f++)
+        n += kind[f] == KIND_OK;
+    s->tri = tsl_alloc_array(n, 9 * sizeof *s->tri);
+    s->cum = tsl_alloc_array(n, sizeof *s->cum);
+    double *box = tsl_alloc_array(n, 6 * sizeof *box);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!s->tri || !s->cum || !box)
+        goto fail;
+    double acc = 0.0;
+    for (size_t f = 0; f < m->triangle_count; f++) {
+        if (kind[f] != KIND_OK)
+            continue;
+        double *t = s->tri + 9 * s->count;
+        for (int k = 0; k < 3; k++) {
+            const float *v = m->xyz + 3 * (size_t)m->triangles[3 * f + k];
+            for (int d = 0; d < 3; d++)
+                t[3 * k + d] = (double)v[d] + shift[d];
+        }
+        double u[3], w[3], nrm[3];
+        tsl_sub(t + 3, t, u);
+        tsl_sub(t + 6, t, w);
+        tsl_cross(u, w, nrm);
+        double len = tsl_norm(nrm);
+        if (!(len > 0.0 && isfinite(len)))
+            continue;
+        acc += 0.5 * len;
+        s->cum[s->count] = acc;
+        double *bx = box + 6 * s->count;
+        for (int d = 0; d < 3; d++) {
+            bx[d] = fmin(t[d], fmin(t[3 + d], t[6 + d]));
+            bx[3 + d] = fmax(t[d], fmax(t[3 + d], t[6 + d]));
+        }
+        s->count++;
+    }
+    st = bvh_build(&s->tree, box, s->count);
+    if (st != TESSEL_OK)
+        goto fail;
+    free(box);
+    return TESSEL_OK;
+fail:
+    free(box);
+    surface_free(s);
+    return st;
+}
+
+/* Distance from q to the surface (which must not be empty). */
+static double surface_distance(const surface *s, const double q[3])
+{
+    double best = INFINITY;
+    uint32_t stack[BVH_STACK];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const bvh_node *nd = &s->tree.nodes[stack[--top]];
+        if (box_dist2(nd, q) >= best)
+            continue;
+        if (nd->count > 0) {
+            for (uint32_t i = 0; i < nd->count; i++) {
+                const double *t = s->tri + 9 * (size_t)s->tree.order[nd->start + i];
+                double d2 = point_triangle_dist2(q, t, t + 3, t + 6);
+                if (d2 < best)
+                    best = d2;
+            }
+            continue;
+        }
+        uint32_t l = (uint32_t)(nd - s->tree.nodes) + 1, r = nd->right;
+        double dl = box_dist2(&s->tree.nodes[l], q), dr = box_dist2(&s->tree.nodes[r], q);
+        /* Push the farther child first so the nearer one is searched first. */
+        if (dl <= dr) {
+            if (dr < best)
+                stack[top++] = r;
+            if (dl < best)
+                stack[top++] = l;
+        } else {
+            if (dl < best)
+                stack[top++] = l;
+            if (dr < best)
+                stack[top++] = r;
+        }
+    }
+    return sqrt(best);
+}
+
+/* MT19937-64 (the generator std::mt19937_64 implements). */
+typedef struct mt64 {
+    uint64_t mt[312];
+    int idx;
+} mt64;
+
+static void mt64_seed(mt64 *g, uint64_t seed)
+{
+    g->mt[0] = seed;
+    for (int i = 1; i < 312; i++)
+        g->mt[i] = 6364136223846793005ULL * (g->mt[i - 1] ^ (g->mt[i - 1] >> 62)) + (uint64_t)i;
+    g->idx = 312;
+}
+
+static uint64_t mt64_next(mt64 *g)
+{
+    if (g->idx >= 312) {
+        for (int i = 0; i < 312; i++) {
+            uint64_t x = (g->mt[i] & 0xFFFFFFFF80000000ULL) |
+                         (g->mt[(i + 1) % 312] & 0x7FFFFFFFULL);
+            uint64_t xa = x >> 1;
+            if (x & 1)
+                xa ^= 0xB5026F5AA96619E9ULL;
+            g->mt[i] = g->mt[(i + 156) % 312] ^ xa;
+        }
+        g->idx = 0;
+    }
+    uint64_t x = g->mt[g->idx++];
+    x ^= (x >> 29) & 0x5555555555555555ULL;
+    x ^= (x << 17) & 0x71D67FFFEDA60000ULL;
+    x ^= (x << 37) & 0xFFF7EEE000000000ULL;
+    x ^= x >> 43;
+    return x;
+}
+
+static inline double mt64_unit(mt64 *g)
+{
+    return (double)(mt64_next(g) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* n points uniformly distributed by area over s (n*3 doubles). */
+static void surface_sample(const surface *s, size_t n, uint64_t seed, double *pts)
+{
+    mt64 g;
+    mt64_seed(&g, seed);
+    double total = s->cum[s->count - 1];
+    for (size_t i = 0; i < n; i++) {
+        double target = mt64_unit(&g) * total;
+        /* upper_bound: the first triangle whose running area exceeds target */
+        size_t lo = 0, hi = s->count;
+        while (lo < hi) {
+            size_t mid = lo + (hi - lo) / 2;
+            if (s->cum[mid] <= target)
+                lo = mid + 1;
+            else
+                hi = mid;
+        }
+        if (lo >= s->count)
+            lo = s->count - 1;
+        const double *t = s->tri + 9 * lo;
+        double su = sqrt(mt64_unit(&g)), r = mt64_unit(&g);
+        double wa = 1.0 - su, wb = su * (1.0 - r), wc = su * r;
+        for (int d = 0; d < 3; d++)
+            pts[3 * i + d] = wa * t[d] + wb * t[3 + d] + wc * t[6 + d];
+    }
+}
+
+/* Mean and max distance from n samples of `from` to `to`, and the share
+ * (percent) closer than tau. */
+typedef struct dir_stats {
+    double mean, max, pct_within;
+} dir_stats;
+
+static tessel_status directed(const surface *from, const surface *to, size_t n, uint64_t seed,
+                              double tau, int threads, dir_stats *out)
+{
+    out->mean = out->max = out->pct_within = NAN;
+    if (from->count == 0 || to->count == 0 || n == 0 || !(from->cum[from->count - 1] > 0.0))
+        return TESSEL_OK;
+    double *pts = tsl_alloc_array(n, 3 * sizeof *pts);
+    double *d = tsl_alloc_array(n, sizeof *d);
+    if (!pts || !d) {
+        free(pts);
+        free(d);
+        return TESSEL_ERR_NOMEM;
+    }
+    surface_sample(from, n, seed, pts);
+    ptrdiff_t nn = (ptrdiff_t)n;
+#pragma omp parallel for schedule(dynamic, 1024) num_threads(threads)
+    for (ptrdiff_t i = 0; i < nn; i++)
+        d[i] = surface_distance(to, pts + 3 * i);
+    double sum = 0.0, mx = 0.0;
+    size_t within = 0;
+    for (size_t i = 0; i < n; i++) {
+        sum += d[i];
+        if (d[i] > mx)
+            mx = d[i];
+        within += d[i] < tau;
+    }
+    out->mean = sum / (double)n;
+    out->max = mx;
+    out->pct_within = 100.0 * (double)within / (double)n;
+    free(pts);
+    free(d);
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Per-mesh preparation                                                      */
+/* ------------------------------------------------------------------------ */
+
+/* Checks indices and coordinates, classifies every triangle. */
+static tessel_status classify(const tessel_mesh *m, uint8_t **kind_out, int threads)
+{
+    *kind_out = NULL;
+    if (m->triangle_count > 0 && (!m->triangles || !m->xyz))
+        return TESSEL_ERR_INVALID_ARG;
+    if (m->vertex_count >= UINT32_MAX || m->triangle_count >= UINT32_MAX / 2)
+        return TESSEL_ERR_LIMIT;
+    for (size_t i = 0; i < 3 * m->triangle_count; i++) {
+        uint32_t v = m->triangles[i];
+        if (v >= m->vertex_count)
+            return TESSEL_ERR_INVALID_ARG;
+        const float *p = m->xyz + 3 * (size_t)v;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            return TESSEL_ERR_INVALID_ARG;
+    }
+    uint8_t *kind = tsl_alloc_array(m->triangle_count, 1);
+    if (!kind)
+        return TESSEL_ERR_NOMEM;
+    ptrdiff_t nf = (ptrdiff_t)m->triangle_count;
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (ptrdiff_t f = 0; f < nf; f++) {
+        const uint32_t *t = m->triangles + 3 * f;
+        if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) {
+            kind[f] = KIND_REPEATED;
+            continue;
+        }
+        double a[3], b[3], c[3];
+        tsl_load(m->xyz + 3 * (size_t)t[0], a);
+        tsl_load(m->xyz + 3 * (size_t)t[1], b);
+        tsl_load(m->xyz + 3 * (size_t)t[2], c);
+        kind[f] = collinear3(a, b, c) ? KIND_ZERO_AREA : KIND_OK;
+    }
+    *kind_out = kind;
+    return TESSEL_OK;
+}
+
+/* Bounding-box diagonal of the vertices referenced by a triangle (all
+ * vertices when there are no triangles). */
+static double bbox_diagonal(const tessel_mesh *m)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    bool any = false;
+    for (size_t i = 0; i < (m->triangle_count ? 3 * m->triangle_count : m->vertex_count); i++) {
+        size_t v = m->triangle_count ? m->triangles[i] : i;
+        const float *p = m->xyz + 3 * v;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            continue;
+        any = true;
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], p[k]);
+            hi[k] = fmax(hi[k], p[k]);
+        }
+    }
+    if (!any)
+        return NAN;
+    double d[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+    return tsl_norm(d);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Figures                                                                   */
+/* ------------------------------------------------------------------------ */
+
+/* Duplicate triangles: same sorted vertex triple as an earlier one. Triples
+ * are bucketed on their smallest vertex, then sorted within a bucket. */
+static tessel_status count_duplicates(const tessel_mesh *m, size_t *out)
+{
+    size_t nv = m->vertex_count, nf = m->triangle_count;
+    size_t *start = tsl_calloc_array(nv + 1, sizeof *start);
+    pair_u32 *items = tsl_alloc_array(nf, sizeof *items);
+    if (!start || !items) {
+        free(start);
+        free(items);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t f = 0; f < nf; f++) {
+        const uint32_t *t = m->triangles + 3 * f;
+        uint32_t lo = t[0] < t[1] ? t[0] : t[1];
+        lo = lo < t[2] ? lo : t[2];
+        start[lo + 1]++;
+    }
+    for (size_t v = 0; v < nv; v++)
+        start[v + 1] += start[v];
+    for (size_t f = 0; f < nf; f++) {
+        uint32_t s[3] = {m->triangles[3 * f], m->triangles[3 * f + 1], m->triangles[3 * f + 2]};
+        for (int i = 0; i < 2; i++)
+            for (int j = 0; j < 2 - i; j++)
+                if (s[j] > s[j + 1]) {
+                    uint32_t t = s[j];
+                    s[j] = s[j + 1];
+                    s[j + 1] = t;
+                }
+        items[start[s[0]]++] = (pair_u32){s[1], s[2]};
+    }
+    /* start[v] now ends bucket v; bucket v begins where v-1 ended. */
+    size_t dup = 0, begin = 0;
+    for (size_t v = 0; v < nv; v++) {
+        size_t end = start[v];
+        sort_pairs(items + begin, end - begin);
+        for (size_t i = begin + 1; i < end; i++)
+            dup += items[i].a == items[i - 1].a && items[i].b == items[i - 1].b;
+        begin = end;
+    }
+    free(start);
+    free(items);
+    *out = dup;
+    return TESSEL_OK;
+}
+
+/* Edges, boundary, manifoldness, orientation, components, Euler, genus. */
+static tessel_status topology(const tessel_mesh *m, const uint8_t *kind, tessel_mesh_report *r)
+{
+    size_t nv = m->vertex_count, nf = m->triangle_count;
+    tessel_status st = TESSEL_ERR_NOMEM;
+    size_t *estart = tsl_calloc_array(nv + 1, sizeof *estart);
+    size_t *vstart = tsl_calloc_array(nv + 1, sizeof *vstart);
+    pair_u32 *half = tsl_alloc_array(nf, 3 * sizeof *half); /* (hi, 2f + fwd) */
+    uint32_t *inc = tsl_alloc_array(nf, 3 * sizeof *inc);
+    uint32_t *comp = tsl_alloc_array(nf, sizeof *comp);
+    uint32_t *bnd = tsl_alloc_array(nv, sizeof *bnd);
+    uint8_t *on_boundary = tsl_calloc_array(nv, 1);
+    parity_uf ori = {tsl_alloc_array(nf, sizeof(uint32_t)), tsl_alloc_array(nf, sizeof(uint32_t)),
+                     tsl_calloc_array(nf, 1)};
+    uint32_t *lv = NULL, *ldeg = NULL, *lpar = NULL;
+    if (!estart || !vstart || !half || !inc || !comp || !bnd || !on_boundary || !ori.parent ||
+        !ori.size || !ori.par)
+        goto done;
+
+    size_t nt = 0;
+    for (size_t f = 0; f < nf; f++) {
+        comp[f] = (uint32_t)f;
+        ori.parent[f] = (uint32_t)f;
+        ori.size[f] = 1;
+        if (kind[f] == KIND_REPEATED)
+            continue;
+        nt++;
+        const uint32_t *t = m->triangles + 3 * f;
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = t[k], b = t[(k + 1) % 3];
+            estart[(a < b ? a : b) + 1]++;
+            vstart[a + 1]++;
+        }
+    }
+    for (size_t v = 0; v < nv; v++) {
+        estart[v + 1] += estart[v];
+        vstart[v + 1] += vstart[v];
+        bnd[v] = (uint32_t)v;
+    }
+    for (size_t f = 0; f < nf; f++) {
+        if (kind[f] == KIND_REPEATED)
+            continue;
+        const uint32_t *t = m->triangles + 3 * f;
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = t[k], b = t[(k + 1) % 3];
+            uint32_t lo = a < b ? a : b, hi = a < b ? b : a;
+            half[estart[lo]++] = (pair_u32){hi, (uint32_t)(2 * f + (a < b))};
+            inc[vstart[a]++] = (uint32_t)f;
+        }
+    }
+    /* estart[v] / vstart[v] now end bucket v. */
+
+    size_t ne = 0, nb = 0, nnm = 0, ninc = 0;
+    bool orientable = true;
+    size_t begin = 0;
+    for (size_t lo = 0; lo < nv; lo++) {
+        size_t end = estart[lo];
+        /* Within a bucket, sort by (hi, face); fills went in face order. */
+        sort_pairs(half + begin, end - begin);
+        for (size_t i = begin; i < end;) {
+            size_t j = i;
+            while (j < end && half[j].a == half[i].a)
+                j++;
+            size_t c = j - i;
+            ne++;
+            if (c == 1) {
+                nb++;
+                uf_unite(bnd, (uint32_t)lo, half[i].a);
+                on_boundary[lo] = on_boundary[half[i].a] = 1;
+            } else {
+                for (size_t t = i + 1; t < j; t++)
+                    uf_unite(comp, half[i].b >> 1, half[t].b >> 1);
+                if (c == 2) {
+                    uint8_t fa = half[i].b & 1, fb = half[i + 1].b & 1;
+                    if (fa == fb)
+                        ninc++;
+                    /* Consistent iff the faces run the edge in opposite
+                     * directions: parity differs iff one must be flipped. */
+                    if (!puf_unite(&ori, half[i].b >> 1, half[i + 1].b >> 1,
+                                   (uint8_t)(fa ^ fb ^ 1)))
+                        orientable = false;
+                } else {
+                    nnm++;
+                }
+            }
+            i = j;
+        }
+        begin = end;
+    }
+
+    size_t ncomp = 0;
+    for (size_t f = 0; f < nf; f++)
+        if (kind[f] != KIND_REPEATED && uf_find(comp, (uint32_t)f) == f)
+            ncomp++;
+    size_t nloops = 0;
+    for (size_t v = 0; v < nv; v++)
+        if (on_boundary[v] && uf_find(bnd, (uint32_t)v) == v)
+            nloops++;
+
+    /* Vertex manifoldness: the link (opposite edges of the incident
+     * triangles) must be connected with every link vertex of degree <= 2. */
+    size_t maxval = 0, nvref = 0, nnmv = 0;
+    begin = 0;
+    for (size_t v = 0; v < nv; v++) {
+        size_t val = vstart[v] - begin;
+        if (val > maxval)
+            maxval = val;
+        begin = vstart[v];
+    }
+    lv = tsl_alloc_array(2 * maxval + 1, sizeof *lv);
+    ldeg = tsl_alloc_array(2 * maxval + 1, sizeof *ldeg);
+    lpar = tsl_alloc_array(2 * maxval + 1, sizeof *lpar);
+    if (!lv || !ldeg || !lpar)
+        goto done;
+    begin = 0;
+    for (size_t v = 0; v < nv; v++) {
+        size_t end = vstart[v];
+        if (end == begin)
+            continue;
+        nvref++;
+        size_t n = 0;
+        for (size_t i = begin; i < end; i++) {
+            const uint32_t *t = m->triangles + 3 * (size_t)inc[i];
+            int k = t[0] == v ? 0 : t[1] == v ? 1 : 2;
+            lv[n++] = t[(k + 1) % 3];
+            lv[n++] = t[(k + 2) % 3];
+        }
+        /* sort + unique (insertion sort: stars are small) */
+        for (size_t i = 1; i < n; i++) {
+            uint32_t x = lv[i];
+            size_t j = i;
+            while (j > 0 && lv[j - 1] > x) {
+                lv[j] = lv[j - 1];
+                j--;
+            }
+            lv[j] = x;
+        }
+        size_t u = 0;
+        for (size_t i = 0; i < n; i++)
+            if (u == 0 || lv[u - 1] != lv[i])
+                lv[u++] = lv[i];
+        for (size_t i = 0; i < u; i++) {
+            ldeg[i] = 0;
+            lpar[i] = (uint32_t)i;
+        }
+        size_t groups = u;
+        bool ok = true;
+        for (size_t i = begin; i < end; i++) {
+            const uint32_t *t = m->triangles + 3 * (size_t)inc[i];
+            int k = t[0] == v ? 0 : t[1] == v ? 1 : 2;
+            uint32_t ends[2] = {t[(k + 1) % 3], t[(k + 2) % 3]}, pos[2];
+            for (int e = 0; e < 2; e++) {
+                size_t lo = 0, hi = u;
+                while (lo < hi) {
+                    size_t mid = (lo + hi) / 2;
+                    if (lv[mid] < ends[e])
+                        lo = mid + 1;
+                    else
+                        hi = mid;
+                }
+                pos[e] = (uint32_t)lo;
+                if (++ldeg[lo] > 2)
+                    ok = false;
+            }
+            uint32_t ra = uf_find(lpar, pos[0]), rb = uf_find(lpar, pos[1]);
+            if (ra != rb) {
+                uf_unite(lpar, ra, rb);
+                groups--;
+            }
+        }
+        if (!ok || groups != 1)
+            nnmv++;
+        begin = end;
+    }
+
+    r->edges = ne;
+    r->boundary_edges = nb;
+    r->boundary_loops = nloops;
+    r->nonmanifold_edges = nnm;
+    r->nonmanifold_vertices = nnmv;
+    r->orientation_conflicts = ninc;
+    r->oriented = ninc == 0;
+    r->orientable = orientable;
+    r->components = ncomp;
+    r->euler = (long)nvref - (long)ne + (long)nt;
+    bool closed = nt > 0 && nb == 0, manifold = nnm == 0 && nnmv == 0;
+    r->genus = closed && manifold && orientable ? (2 * (long)ncomp - r->euler) / 2 : -1;
+    st = TESSEL_OK;
+done:
+    free(estart);
+    free(vstart);
+    free(half);
+    free(inc);
+    free(comp);
+    free(bnd);
+    free(on_boundary);
+    free(ori.parent);
+    free(ori.size);
+    free(ori.par);
+    free(lv);
+    free(ldeg);
+    free(lpar);
+    return st;
+}
+
+/* Canonical vertex ids: the smallest index with bit-identical coordinates
+ * (+0 and -0 are the same coordinate). Open-addressing hash, inserted in
+ * index order, so the result is deterministic. */
+static tessel_status canonical_vertices(const tessel_mesh *m, uint32_t **out)
+{
+    size_t nv = m->vertex_count, cap = 16;
+    while (cap < 2 * nv)
+        cap *= 2;
+    uint32_t *canon = tsl_alloc_array(nv, sizeof *canon);
+    uint32_t *table = tsl_alloc_array(cap, sizeof *table);
+    if (!canon || !table) {
+        free(canon);
+        free(table);
+        return TESSEL_ERR_NOMEM;
+    }
+    memset(table, 0xff, cap * sizeof *table);
+    for (size_t v = 0; v < nv; v++) {
+        const float *p = m->xyz + 3 * v;
+        canon[v] = (uint32_t)v;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            continue;
+        uint32_t bits[3];
+        for (int k = 0; k < 3; k++) {
+            float c = p[k] == 0.0f ? 0.0f : p[k];
+            memcpy(&bits[k], &c, 4);
+        }
+        uint64_t h = bits[0] * 0x9E3779B97F4A7C15ULL;
+        h = (h ^ bits[1]) * 0xC2B2AE3D27D4EB4FULL;
+        h = (h ^ bits[2]) * 0x165667B19E3779F9ULL;
+        h ^= h >> 29;
+        size_t slot = (size_t)h & (cap - 1);
+        for (;;) {
+            uint32_t w = table[slot];
+            if (w == UINT32_MAX) {
+                table[slot] = (uint32_t)v;
+                break;
+            }
+            const float *q = m->xyz + 3 * (size_t)w;
+            if (q[0] == p[0] && q[1] == p[1] && q[2] == p[2]) {
+                canon[v] = w;
+                break;
+            }
+            slot = (slot + 1) & (cap - 1);
+        }
+    }
+    free(table);
+    *out = canon;
+    return TESSEL_OK;
+}
+
+/* Counts intersecting pairs of non-degenerate triangles and the triangles
+ * in at least one such pair. */
+static tessel_status self_intersections(const tessel_mesh *m, const uint8_t *kind, int threads,
+                                        size_t *pairs_out, size_t *faces_out)
+{
+    size_t nf = m->triangle_count, n = 0;
+    uint32_t *canon = NULL, *ids = NULL, *pairs = NULL;
+    double *box = NULL;
+    uint8_t *hit = NULL;
+    bvh tree;
+    memset(&tree, 0, sizeof tree);
+    tessel_status st = canonical_vertices(m, &canon);
+    if (st != TESSEL_OK)
+        return st;
+    st = TESSEL_ERR_NOMEM;
+    for (size_t f = 0; f < nf; f++)
+        n += kind[f] == KIND_OK;
+    ids = tsl_alloc_array(n, sizeof *ids);
+    box = tsl_alloc_array(n, 6 * sizeof *box);
+    pairs = tsl_calloc_array(n, sizeof *pairs);
+    hit = tsl_calloc_array(nf, 1);
+    if (!ids || !box || !pairs || !hit)
+        goto done;
+    n = 0;
+    for (size_t f = 0; f < nf; f++) {
+        if (kind[f] != KIND_OK)
+            continue;
+        ids[n] = (uint32_t)f;
+        double *bx = box + 6 * n;
+        for (int d = 0; d < 3; d++) {
+            bx[d] = INFINITY;
+            bx[3 + d] = -INFINITY;
+        }
+        for (int k = 0; k < 3; k++) {
+            const float *p = m->xyz + 3 * (size_t)m->triangles[3 * f + k];
+            for (int d = 0; d < 3; d++) {
+                bx[d] = fmin(bx[d], p[d]);
+                bx[3 + d] = fmax(bx[3 + d], p[d]);
+            }
+        }
+        n++;
+    }
+    st = bvh_build(&tree, box, n);
+    if (st != TESSEL_OK)
+        goto done;
+    ptrdiff_t nn = (ptrdiff_t)n;
+#pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
+    for (ptrdiff_t i = 0; i < nn; i++) {
+        const double *bi = box + 6 * i;
+        uint32_t fi = ids[i], ci[3];
+        double pi[3][3];
+        const double *pip[3] = {pi[0], pi[1], pi[2]};
+        for (int k = 0; k < 3; k++) {
+            uint32_t v = m->triangles[3 * (size_t)fi + k];
+            ci[k] = canon[v];
+            tsl_load(m->xyz + 3 * (size_t)v, pi[k]);
+        }
+        uint32_t stack[BVH_STACK], count = 0;
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0) {
+            const bvh_node *nd = &tree.nodes[stack[--top]];
+            if (!boxes_overlap(bi, bi + 3, nd->lo, nd->hi))
+                continue;
+            if (nd->count == 0) {
+                stack[top++] = nd->right;
+                stack[top++] = (uint32_t)(nd - tree.nodes) + 1;
+                continue;
+            }
+            for (uint32_t e = 0; e < nd->count; e++) {
+                uint32_t j = tree.order[nd->start + e];
+                if (j <= (uint32_t)i)
+                    continue; /* each unordered pair once */
+                const double *bj = box + 6 * (size_t)j;
+                if (!boxes_overlap(bi, bi + 3, bj, bj + 3))
+                    continue;
+                uint32_t fj = ids[j], cj[3];
+                double pj[3][3];
+                const double *pjp[3] = {pj[0], pj[1], pj[2]};
+                for (int k = 0; k < 3; k++) {
+                    uint32_t v = m->triangles[3 * (size_t)fj + k];
+                    cj[k] = canon[v];
+                    tsl_load(m->xyz + 3 * (size_t)v, pj[k]);
+                }
+                if (faces_intersect(ci, cj, pip, pjp)) {
+                    count++;
+                    /* Racing writes all store 1: the result is the same. */
+#pragma omp atomic write
+                    hit[fi] = 1;
+#pragma omp atomic write
+                    hit[fj] = 1;
+                }
+            }
+        }
+        pairs[i] = count;
+    }
+    size_t total = 0, faces = 0;
+    for (size_t i = 0; i < n; i++)
+        total += pairs[i];
+    for (size_t f = 0; f < nf; f++)
+        faces += hit[f];
+    *pairs_out = total;
+    *faces_out = faces;
+    st = TESSEL_OK;
+done:
+    free(canon);
+    free(ids);
+    free(box);
+    free(pairs);
+    free(hit);
+    bvh_free(&tree);
+    return st;
+}
+
+/* Angle statistics and area over non-degenerate triangles. */
+static void quality(const tessel_mesh *m, const uint8_t *kind, tessel_mesh_report *r)
+{
+    const double deg = 180.0 / 3.14159265358979323846;
+    size_t n = 0;
+    double min_min = INFINITY, max_max = -INFINITY, sum_min = 0.0, area = 0.0;
+    for (size_t f = 0; f < m->triangle_count; f++) {
+        if (kind[f] != KIND_OK)
+            continue;
+        double p[3][3];
+        for (int k = 0; k < 3; k++)
+            tsl_load(m->xyz + 3 * (size_t)m->triangles[3 * f + k], p[k]);
+        double amin = INFINITY, amax = -INFINITY;
+        for (int k = 0; k < 3; k++) {
+            double u[3], w[3], c[3];
+            tsl_sub(p[(k + 1) % 3], p[k], u);
+            tsl_sub(p[(k + 2) % 3], p[k], w);
+            tsl_cross(u, w, c);
+            double a = atan2(tsl_norm(c), tsl_dot(u, w)) * deg;
+            amin = fmin(amin, a);
+            amax = fmax(amax, a);
+        }
+        double u[3], w[3], c[3];
+        tsl_sub(p[1], p[0], u);
+        tsl_sub(p[2], p[0], w);
+        tsl_cross(u, w, c);
+        area += 0.5 * tsl_norm(c);
+        n++;
+        sum_min += amin;
+        min_min = fmin(min_min, amin);
+        max_max = fmax(max_max, amax);
+    }
+    r->area = area;
+    r->min_angle_deg = n ? min_min : NAN;
+    r->max_angle_deg = n ? max_max : NAN;
+    r->mean_min_angle_deg = n ? sum_min / (double)n : NAN;
+}
+
+/* --input: input points that are mesh vertices, distances to the mesh. */
+static tessel_status input_figures(const tessel_mesh *m, const surface *s,
+                                   const tessel_cloud *cloud, int threads,
+                                   tessel_mesh_report *r)
+{
+    size_t np = cloud->count;
+    if (np > 0 && !cloud->xyz)
+        return TESSEL_ERR_INVALID_ARG;
+    double shift[3];
+    for (int k = 0; k < 3; k++)
+        shift[k] = cloud->offset[k] - m->offset[k];
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    size_t finite = 0;
+    for (size_t i = 0; i < np; i++) {
+        const float *p = cloud->xyz + 3 * i;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            continue;
+        finite++;
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], p[k]);
+            hi[k] = fmax(hi[k], p[k]);
+        }
+    }
+    double ext[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+    double diag = finite ? tsl_norm(ext) : NAN;
+    r->input_points = finite;
+    r->input_bbox_diagonal = diag;
+    r->input_as_vertices = 0;
+    r->input_distance_mean = r->input_distance_rms = r->input_distance_max = NAN;
+    if (finite == 0)
+        return TESSEL_OK;
+
+    /* Referenced vertices as zero-size boxes. */
+    uint8_t *ref = tsl_calloc_array(m->vertex_count, 1);
+    uint32_t *vid = tsl_alloc_array(m->vertex_count, sizeof *vid);
+    double *vbox = tsl_alloc_array(m->vertex_count, 6 * sizeof *vbox);
+    double *d = tsl_alloc_array(np, sizeof *d);
+    uint8_t *used = tsl_calloc_array(np, 1);
+    bvh vt;
+    memset(&vt, 0, sizeof vt);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!ref || !vid || !vbox || !d || !used)
+        goto done;
+    for (size_t i = 0; i < 3 * m->triangle_count; i++)
+        ref[m->triangles[i]] = 1;
+    size_t nref = 0;
+    for (size_t v = 0; v < m->vertex_count; v++) {
+        if (!ref[v])
+            continue;
+        vid[nref] = (uint32_t)v;
+        for (int k = 0; k < 3; k++)
+            vbox[6 * nref + k] = vbox[6 * nref + 3 + k] = m->xyz[3 * v + k];
+        nref++;
+    }
+    st = bvh_build(&vt, vbox, nref);
+    if (st != TESSEL_OK)
+        goto done;
+    const double tol = 1e-9 * diag;
+    ptrdiff_t nn = (ptrdiff_t)np;
+#pragma omp parallel for schedule(dynamic, 1024) num_threads(threads)
+    for (ptrdiff_t i = 0; i < nn; i++) {
+        const float *pf = cloud->xyz + 3 * i;
+        d[i] = NAN;
+        if (!isfinite(pf[0]) || !isfinite(pf[1]) || !isfinite(pf[2]))
+            continue;
+        double q[3] = {pf[0] + shift[0], pf[1] + shift[1], pf[2] + shift[2]};
+        if (s->count > 0)
+            d[i] = surface_distance(s, q);
+        if (nref == 0)
+            continue;
+        double qlo[3] = {q[0] - tol, q[1] - tol, q[2] - tol};
+        double qhi[3] = {q[0] + tol, q[1] + tol, q[2] + tol};
+        uint32_t stack[BVH_STACK];
+        int top = 0;
+        stack[top++] = 0;
+        while (top > 0 && !used[i]) {
+            const bvh_node *nd = &vt.nodes[stack[--top]];
+            if (!boxes_overlap(qlo, qhi, nd->lo, nd->hi))
+                continue;
+            if (nd->count == 0) {
+                stack[top++] = nd->right;
+                stack[top++] = (uint32_t)(nd - vt.nodes) + 1;
+                continue;
+            }
+            for (uint32_t e = 0; e < nd->count; e++) {
+                const double *vb = vbox + 6 * (size_t)vt.order[nd->start + e];
+                double dd[3] = {vb[0] - q[0], vb[1] - q[1], vb[2] - q[2]};
+                if (sqrt(tsl_dot(dd, dd)) <= tol) {
+                    used[i] = 1;
+                    break;
+                }
+            }
+        }
+    }
+    size_t nused = 0;
+    for (size_t i = 0; i < np; i++)
+        nused += used[i];
+    r->input_as_vertices = nused;
+    if (s->count > 0) {
+        double sum = 0.0, sum2 = 0.0, mx = 0.0;
+        for (size_t i = 0; i < np; i++) {
+            if (isnan(d[i]))
+                continue;
+            sum += d[i];
+            sum2 += d[i] * d[i];
+            if (d[i] > mx)
+                mx = d[i];
+        }
+        r->input_distance_mean = sum / (double)finite;
+        r->input_distance_rms = sqrt(sum2 / (double)finite);
+        r->input_distance_max = mx;
+    }
+    st = TESSEL_OK;
+done:
+    free(ref);
+    free(vid);
+    free(vbox);
+    free(d);
+    free(used);
+    bvh_free(&vt);
+    return st;
+}
+
+/* --reference: Chamfer, Hausdorff, precision / recall / F-score. */
+static tessel_status reference_figures(const tessel_mesh *m, const surface *out,
+                                       const tessel_check_params *p, int threads,
+                                       tessel_mesh_report *r)
+{
+    const tessel_mesh *ref = p->reference;
+    uint8_t *kind = NULL;
+    surface rs;
+    memset(&rs, 0, sizeof rs);
+    tessel_status st = classify(ref, &kind, threads);
+    if (st != TESSEL_OK)
+        return st;
+    double shift[3];
+    for (int k = 0; k < 3; k++)
+        shift[k] = ref->offset[k] - m->offset[k];
+    st = surface_build(&rs, ref, kind, shift);
+    free(kind);
+    if (st != TESSEL_OK)
+        return st;
+    if (rs.count == 0) {
+        surface_free(&rs);
+        return TESSEL_ERR_INVALID_ARG; /* nothing to compare with */
+    }
+    double diag = bbox_diagonal(ref);
+    double tau = p->tau > 0.0 ? p->tau : 0.01 * diag;
+    size_t n = p->samples;
+    dir_stats o2r, r2o;
+    st = directed(out, &rs, n, SEED_MESH_SAMPLES, tau, threads, &o2r);
+    if (st == TESSEL_OK)
+        st = directed(&rs, out, n, SEED_REF_SAMPLES, tau, threads, &r2o);
+    surface_free(&rs);
+    if (st != TESSEL_OK)
+        return st;
+    bool empty = out->count == 0;
+    r->reference_bbox_diagonal = diag;
+    r->tau = tau;
+    r->accuracy = o2r.mean;
+    r->completeness = empty ? NAN : r2o.mean;
+    r->chamfer = 0.5 * (o2r.mean + r2o.mean);
+    r->hausdorff = isnan(o2r.max) || isnan(r2o.max) ? NAN : fmax(o2r.max, r2o.max);
+    double prec = o2r.pct_within, rec = empty ? 0.0 : r2o.pct_within;
+    r->precision = prec;
+    r->recall = rec;
+    r->fscore = empty ? 0.0 : (prec + rec > 0.0 ? 2.0 * prec * rec / (prec + rec) : 0.0);
+    return TESSEL_OK;
+}
+
+tessel_status tessel_mesh_check(const tessel_mesh *mesh, const tessel_check_params *params,
+                                tessel_mesh_report *report)
+{
+    if (!mesh || !report)
+        return TESSEL_ERR_INVALID_ARG;
+    tessel_check_params p = params ? *params : tessel_check_params_default();
+    tessel_mesh_report r;
+    memset(&r, 0, sizeof r);
+    r.self_intersections = SIZE_MAX;
+    r.self_intersecting_triangles = SIZE_MAX;
+    r.genus = -1;
+    r.input_distance_mean = r.input_distance_rms = r.input_distance_max = NAN;
+    r.input_bbox_diagonal = NAN;
+    r.chamfer = r.hausdorff = r.accuracy = r.completeness = NAN;
+    r.precision = r.recall = r.fscore = r.tau = r.reference_bbox_diagonal = NAN;
+    if (mesh->vertex_count > 0 && !mesh->xyz)
+        return TESSEL_ERR_INVALID_ARG;
+    int threads = tsl_threads(p.threads);
+
+    uint8_t *kind = NULL;
+    surface s;
+    memset(&s, 0, sizeof s);
+    tessel_status st = classify(mesh, &kind, threads);
+    if (st != TESSEL_OK)
+        return st;
+    r.vertices = mesh->vertex_count;
+    r.triangles = mesh->triangle_count;
+    for (size_t f = 0; f < mesh->triangle_count; f++)
+        r.degenerate_triangles += kind[f] != KIND_OK;
+    {
+        uint8_t *ref = tsl_calloc_array(mesh->vertex_count, 1);
+        if (!ref) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        for (size_t i = 0; i < 3 * mesh->triangle_count; i++)
+            ref[mesh->triangles[i]] = 1;
+        for (size_t v = 0; v < mesh->vertex_count; v++)
+            r.unreferenced_vertices += !ref[v];
+        free(ref);
+    }
+    r.bbox_diagonal = bbox_diagonal(mesh);
+    st = count_duplicates(mesh, &r.duplicate_triangles);
+    if (st == TESSEL_OK)
+        st = topology(mesh, kind, &r);
+    if (st == TESSEL_OK && p.self_intersections)
+        st = self_intersections(mesh, kind, threads, &r.self_intersections,
+                                &r.self_intersecting_triangles);
+    if (st != TESSEL_OK)
+        goto done;
+    quality(mesh, kind, &r);
+
+    if (p.input || p.reference) {
+        const double zero[3] = {0.0, 0.0, 0.0};
+        st = surface_build(&s, mesh, kind, zero);
+        if (st == TESSEL_OK && p.input)
+            st = input_figures(mesh, &s, p.input, threads, &r);
+        if (st == TESSEL_OK && p.reference)
+            st = reference_figures(mesh, &s, &p, threads, &r);
+    }
+done:
+    free(kind);
+    surface_free(&s);
+    if (st == TESSEL_OK)
+        *report = r;
+    return st;
+}
