@@ -150,6 +150,13 @@ extern const tsl_format_writer tsl_writer_obj;
 extern const tsl_format_writer tsl_writer_off;
 extern const tsl_format_writer tsl_writer_stl;
 
+/* A whole cloud as PLY, keeping what tsl_vertices cannot carry: an
+ * organized cloud is written as all width*height cells in row order (NaN
+ * coordinates for missing cells) with "comment organized W H", and the
+ * viewpoint as "comment viewpoint X Y Z" (src/io/ply.c). */
+tessel_status tsl_ply_write_cloud(FILE *fp, const tessel_cloud *cloud,
+                                  const tessel_write_params *params);
+
 /* Formats a world coordinate (offset + f) so that reading it back as a
  * double and applying tsl_choose_offset gives the same float and offset:
  * "%.9g" of the float when offset is 0, "%.17g" of the double sum else.
