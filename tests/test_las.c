@@ -355,6 +355,29 @@ static void test_bad_files(void)
                   "announces 4294967280 points", 0, 227);
 }
 
+
+/* The public entry point recognises LAS by its signature. */
+static void test_public_api(void)
+{
+    enum { N = 5 };
+    int32_t X[3 * N];
+    uint16_t rgb[3 * N];
+    fill(N, X, rgb, 1000, 1);
+    las_spec s = {3, 5, N, 0, 1, 0, {0.01, 0.01, 0.01}, {0, 0, 0}, X, rgb, 0};
+    size_t size;
+    uint8_t *data = make_las(&s, &size);
+    tessel_cloud c;
+    tessel_diag d;
+    CHECK(tessel_cloud_parse(&c, data, size, NULL, NULL, &d) == TESSEL_OK);
+    check_points(&s, &c, 1e-4, "sniffed");
+    tessel_cloud_free(&c);
+    tessel_mesh m;
+    CHECK(tessel_mesh_parse(&m, data, size, "x.las", NULL, &d) == TESSEL_OK &&
+          m.vertex_count == N && m.triangle_count == 0);
+    tessel_mesh_free(&m);
+    free(data);
+}
+
 int main(void)
 {
     test_versions_and_formats();
@@ -362,5 +385,6 @@ int main(void)
     test_georeferenced();
     test_lies();
     test_bad_files();
+    test_public_api();
     return TEST_SUMMARY();
 }

@@ -277,11 +277,26 @@ static void test_errors(void)
     tsl_builder_free(&b);
 }
 
+
+/* The public entry point recognises PCD by its header. */
+static void test_public_api(void)
+{
+    const char *text = "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\n"
+                       "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nDATA ascii\n1 2 3\n";
+    tessel_cloud c;
+    tessel_diag d;
+    CHECK_MSG(tessel_cloud_parse(&c, text, strlen(text), NULL, NULL, &d) == TESSEL_OK, "%s",
+              d.message);
+    CHECK(c.count == 1 && c.xyz[2] == 3);
+    tessel_cloud_free(&c);
+}
+
 int main(void)
 {
     test_ascii();
     test_binary_types();
     test_organized();
     test_errors();
+    test_public_api();
     return TEST_SUMMARY();
 }

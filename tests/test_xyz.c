@@ -4,6 +4,7 @@
 #include "format_helpers.h"
 
 #include <math.h>
+#include <unistd.h>
 
 static tessel_status parse(const char *text, tessel_cloud *c, tessel_diag *d)
 {
@@ -241,6 +242,48 @@ static void test_prefixes(void)
     CHECK(fmt_every_prefix(tsl_parse_xyz, csv, strlen(csv)) == 0);
 }
 
+
+/* Through the public API: .xyz, .csv and .txt files written and read back
+ * (format from the extension), and content sniffing on a nameless buffer. */
+static void test_public_api(void)
+{
+    char dir[] = "/tmp/tessel_xyz_XXXXXX";
+    CHECK(mkdtemp(dir) != NULL);
+    tessel_cloud src;
+    const char *text = "x,y,z,nx,ny,nz,r,g,b\n"
+                       "637001.25,5120000.5,301.125,0,0,1,1,2,3\n"
+                       "637002.5,5120001.75,302.5,0,1,0,4,5,6\n";
+    tessel_diag d;
+    CHECK(tessel_cloud_parse(&src, text, strlen(text), NULL, NULL, &d) == TESSEL_OK);
+    CHECK(src.count == 2 && src.normals && src.rgb && src.offset[0] > 0);
+    static const char *const exts[] = {"xyz", "csv", "txt"};
+    for (int e = 0; e < 3; e++) {
+        char path[256];
+        snprintf(path, sizeof path, "%s/cloud.%s", dir, exts[e]);
+        CHECK_MSG(tessel_cloud_write(&src, path, NULL, &d) == TESSEL_OK, "%s", d.message);
+        tessel_cloud back;
+        CHECK_MSG(tessel_cloud_read(&back, path, NULL, &d) == TESSEL_OK, "%s", d.message);
+        CHECK(back.count == 2 && fmt_same_floats(back.xyz, src.xyz, 6) &&
+              memcmp(back.offset, src.offset, sizeof src.offset) == 0);
+        CHECK(back.normals && fmt_same_floats(back.normals, src.normals, 6));
+        CHECK(back.rgb && memcmp(back.rgb, src.rgb, 6) == 0);
+        if (e == 1) {
+            FILE *fp = fopen(path, "r");
+            char line[128] = "";
+            CHECK(fp && fgets(line, sizeof line, fp));
+            CHECK(strcmp(line, "x,y,z,nx,ny,nz,r,g,b\n") == 0);
+            CHECK(fp && fgets(line, sizeof line, fp));
+            CHECK(strcmp(line, "637001.25,5120000.5,301.125,0,0,1,1,2,3\n") == 0);
+            if (fp)
+                fclose(fp);
+        }
+        tessel_cloud_free(&back);
+        unlink(path);
+    }
+    tessel_cloud_free(&src);
+    rmdir(dir);
+}
+
 int main(void)
 {
     test_basic();
@@ -249,5 +292,6 @@ int main(void)
     test_errors();
     test_round_trips();
     test_prefixes();
+    test_public_api();
     return TEST_SUMMARY();
 }
