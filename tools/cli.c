@@ -142,6 +142,45 @@ void cli_json_string(FILE *out, const char *s)
     fputc('"', out);
 }
 
+/* Parses "IN OUT" plus the common options; command-specific options are
+ * handled by `extra`, which returns 1 if it consumed argv[*i], 0 if not,
+ * -1 on error. */
+int cli_parse_in_out(int argc, char **argv, const char *help, cli_common *common,
+                        const char **in, const char **out, cli_extra_option_fn extra, void *ctx)
+{
+    for (int i = 1; i < argc; i++) {
+        if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+            fputs(help, stdout);
+            fputs(cli_common_help, stdout);
+            return 0;
+        }
+        int r = cli_common_option(common, argc, argv, &i);
+        if (r == 0 && extra)
+            r = extra(ctx, argc, argv, &i);
+        if (r < 0)
+            return -1;
+        if (r > 0)
+            continue;
+        if (argv[i][0] == '-' && argv[i][1] != '\0') {
+            cli_error("%s: unknown option '%s'", argv[0], argv[i]);
+            return -1;
+        }
+        if (!*in)
+            *in = argv[i];
+        else if (!*out)
+            *out = argv[i];
+        else {
+            cli_error("%s: expects IN and OUT, got a third file '%s'", argv[0], argv[i]);
+            return -1;
+        }
+    }
+    if (!*in || !*out) {
+        fputs(help, stderr);
+        return -1;
+    }
+    return 1;
+}
+
 double cli_now(void)
 {
     struct timespec ts;

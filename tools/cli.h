@@ -75,6 +75,15 @@ void cli_progress_items(cli_progress *p, size_t items);
 /* Ends the current stage's line. */
 void cli_progress_done(cli_progress *p);
 
+/* Parses "SUBCOMMAND IN OUT [options]": common options, then `extra` for
+ * the subcommand's own (returns 1 if it consumed argv[*i] and its values, 0
+ * if not its option, -1 after printing an error). Returns 1 to go on, 0
+ * when --help was printed, -1 on a usage error (already reported). */
+typedef int (*cli_extra_option_fn)(void *ctx, int argc, char **argv, int *i);
+int cli_parse_in_out(int argc, char **argv, const char *help, cli_common *common,
+                     const char **in, const char **out, cli_extra_option_fn extra,
+                     void *ctx);
+
 /* Writes s as a JSON string literal (quoted, escaped). */
 void cli_json_string(FILE *out, const char *s);
 
@@ -85,5 +94,7 @@ double cli_now(void);
 int cmd_info(int argc, char **argv);
 int cmd_convert(int argc, char **argv);
 int cmd_normals(int argc, char **argv);
+int cmd_check(int argc, char **argv);
+int cmd_render(int argc, char **argv);
 
 #endif /* TESSEL_CLI_H */

@@ -1,3 +1,50 @@
-#include "tessel.h"
-#include <stdio.h>
-int main(void) { printf("tessel %s\n", tessel_version()); return 0; }
+/* tessel: the command-line tool. The only place with main(), argv parsing,
+ * printing and exit codes; every subcommand is tools/cmd_<name>.c. */
+#include "cli.h"
+
+#include <string.h>
+
+typedef struct command {
+    const char *name;
+    cli_command_fn run;
+    const char *summary;
+} command;
+
+static const command commands[] = {
+    {"convert", cmd_convert, "convert between file formats"},
+};
+
+static void usage(FILE *out)
+{
+    fprintf(out, "usage: tessel COMMAND [options] ...\n\n"
+                 "tessel %s: surface reconstruction from 3D point clouds.\n\n"
+                 "Commands:\n",
+            tessel_version());
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(out, "  %-12s %s\n", commands[i].name, commands[i].summary);
+    fprintf(out, "\n'tessel COMMAND --help' describes each command.\n"
+                 "Exit codes: 0 ok, 1 usage, 2 input error, 3 output error, 4 failure.\n");
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return CLI_USAGE;
+    }
+    const char *name = argv[1];
+    if (strcmp(name, "--help") == 0 || strcmp(name, "-h") == 0 || strcmp(name, "help") == 0) {
+        usage(stdout);
+        return CLI_OK;
+    }
+    if (strcmp(name, "--version") == 0) {
+        printf("tessel %s\n", tessel_version());
+        return CLI_OK;
+    }
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
+        if (strcmp(name, commands[i].name) == 0)
+            return commands[i].run(argc - 1, argv + 1);
+    }
+    cli_error("unknown command '%s' (see tessel --help)", name);
+    return CLI_USAGE;
+}
