@@ -90,7 +90,11 @@ static bool scan_exact(const char *text, double *v, size_t *used)
     memcpy(buf, text, n);
     const char *p = buf;
     bool ok = tsl_scan_double(&p, buf + n, v);
-    *used = (size_t)(p - buf);
+    /* Found by comparison: gcc 12 -O3 flags "p - buf" as a use after free. */
+    size_t left = n;
+    while (left && p != buf + (n - left))
+        left--;
+    *used = n - left;
     free(buf);
     return ok;
 }
