@@ -473,6 +473,65 @@ TESSEL_API int tessel_mesh_report_valid(const tessel_mesh_report *report);
 /* Rendering (src/render.c)                                                  */
 /* ------------------------------------------------------------------------ */
 
+/* A software rasterizer for looking at results: orthographic views fitted
+ * to the mesh, z-buffer, flat shading with a headlight. Front faces (whose
+ * counter-clockwise side faces the viewer) and back faces get different
+ * colours, so flipped triangles show; boundary edges (edges of exactly one
+ * triangle) are drawn on top in their own colour, so holes show. A cloud
+ * is rendered as a mesh with no triangles: its points become splats,
+ * coloured by their rgb when present, otherwise shaded by their normals or,
+ * without normals, by depth. */
+typedef enum tessel_view {
+    TESSEL_VIEW_FRONT = 0, /* directions: see the table below */
+    TESSEL_VIEW_BACK,
+    TESSEL_VIEW_LEFT,
+    TESSEL_VIEW_RIGHT,
+    TESSEL_VIEW_TOP,
+    TESSEL_VIEW_ISO,       /* from the front-right-top diagonal */
+    TESSEL_VIEW_ALL        /* 2x2 contact sheet: front, right, top, iso */
+} tessel_view;
+/* Views with up = +Y (z_up 0): front looks from +Z towards -Z, back from
+ * -Z, right from +X, left from -X, top from +Y (image up = -Z), iso from
+ * (+1,+1,+1). With z_up 1 the roles of Y and Z swap: front looks from -Y,
+ * top from +Z, iso from (+1,-1,+1). */
+
+/* Parses "front", "back", "left", "right", "top", "iso", "all"; returns -1
+ * for anything else. */
+TESSEL_API int tessel_view_from_name(const char *name);
+
+typedef struct tessel_render_params {
+    tessel_view view;          /* default TESSEL_VIEW_ISO */
+    uint32_t width, height;    /* image size in pixels (the whole sheet for
+                                  VIEW_ALL); 1..16384 each; default 1024 x 768 */
+    int z_up;                  /* 1: +Z is up (terrain, LAS); 0: +Y is up
+                                  (most scanned models); default 0 */
+    int edges;                 /* 1: draw every triangle edge; default 0 */
+    int points;                /* 1: draw the vertices of a mesh as splats
+                                  too (a mesh without triangles always is);
+                                  default 0 */
+    int boundary;              /* 1: draw boundary edges; default 1 */
+    uint32_t point_size;       /* splat width in pixels, 0 = automatic (from
+                                  the point count and image size); default 0 */
+    uint8_t background[3];     /* default 38 38 46 (dark grey) */
+    uint8_t front_color[3];    /* lit front faces; default 214 208 196 */
+    uint8_t back_color[3];     /* lit back faces; default 70 120 235 (blue) */
+    uint8_t boundary_color[3]; /* default 255 0 0 (red) */
+    uint8_t edge_color[3];     /* triangle edges; default 20 20 20 */
+    uint8_t point_color[3];    /* splats without rgb; default 250 200 60 */
+    int threads;               /* 0 = OpenMP default */
+} tessel_render_params;
+TESSEL_API tessel_render_params tessel_render_params_default(void);
+
+/* Renders mesh into rgb, which the caller sizes width*height*3 bytes (rows
+ * top to bottom, RGB8). A mesh with nothing to draw gives an image of the
+ * background colour. Triangle indices must be < vertex_count
+ * (TESSEL_ERR_INVALID_ARG otherwise). Memory beyond the image: a float
+ * depth buffer and, when boundaries are drawn, 4 bytes per triangle corner.
+ * Deterministic for any thread count. */
+TESSEL_API tessel_status tessel_render(const tessel_mesh *mesh,
+                                       const tessel_render_params *params,
+                                       uint8_t *rgb);
+
 /* ------------------------------------------------------------------------ */
 /* Greedy projection reconstruction (src/greedy.c)                           */
 /* ------------------------------------------------------------------------ */

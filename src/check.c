@@ -227,15 +227,19 @@ static void sort_pairs(pair_u32 *v, size_t n)
 #define BVH_LEAF 4
 #define BVH_STACK 96
 
+/* Nodes in depth-first order: an inner node's left child follows it. Boxes
+ * are floats rounded outwards (32-byte-ish nodes keep traversals in cache);
+ * every primitive box fed in is itself a rounded-out float box. */
 typedef struct bvh_node {
-    double lo[3], hi[3];
-    uint32_t start, count; /* leaf: order[start .. start+count) */
-    uint32_t right;        /* inner (count == 0): right child; left is next */
+    float lo[3], hi[3];
+    uint32_t start, end; /* leaf positions [start, end) below this node */
+    uint32_t right;      /* right child; 0 for a leaf (the root is never one) */
 } bvh_node;
 
 typedef struct bvh {
     bvh_node *nodes;
-    uint32_t *order; /* primitive ids in leaf order */
+    uint32_t *order; /* primitive id at each leaf position */
+    float *box;      /* box of the primitive at each leaf position, 6 floats */
     size_t node_count;
 } bvh;
 
@@ -243,7 +247,20 @@ static void bvh_free(bvh *b)
 {
     free(b->nodes);
     free(b->order);
+    free(b->box);
     memset(b, 0, sizeof *b);
+}
+
+/* Float bounds that contain the double interval [lo, hi]. */
+static inline float round_down(double x)
+{
+    float f = (float)x;
+    return (double)f > x ? nextafterf(f, -INFINITY) : f;
+}
+static inline float round_up(double x)
+{
+    float f = (float)x;
+    return (double)f < x ? nextafterf(f, INFINITY) : f;
 }
 
 /* Spreads the low 10 bits of x to every third bit. */
@@ -257,47 +274,67 @@ static uint32_t morton_spread(uint32_t x)
     return x;
 }
 
-static uint32_t bvh_build_range(bvh *b, const double *box, uint32_t start, uint32_t end)
+/* Split point of a Morton-sorted range: where its highest differing code
+ * bit flips (so a node covers one cell of the implicit octree), or the
+ * middle when all codes are equal. */
+static uint32_t morton_split(const uint32_t *code, uint32_t start, uint32_t end)
+{
+    uint32_t first = code[start], last = code[end - 1];
+    if (first == last)
+        return start + (end - start) / 2;
+    uint32_t bit = 31;
+    while (!(((first ^ last) >> bit) & 1u))
+        bit--;
+    /* first position in (start, end) whose code has the bit set */
+    uint32_t lo = start + 1, hi = end - 1;
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if ((code[mid] >> bit) & 1u)
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
+}
+
+static uint32_t bvh_build_range(bvh *b, const uint32_t *code, uint32_t start, uint32_t end)
 {
     uint32_t id = (uint32_t)b->node_count++;
     bvh_node *nd = &b->nodes[id];
+    nd->start = start;
+    nd->end = end;
     if (end - start <= BVH_LEAF) {
-        nd->start = start;
-        nd->count = end - start;
         nd->right = 0;
         for (int k = 0; k < 3; k++) {
             nd->lo[k] = INFINITY;
             nd->hi[k] = -INFINITY;
         }
         for (uint32_t i = start; i < end; i++) {
-            const double *bx = box + 6 * (size_t)b->order[i];
+            const float *bx = b->box + 6 * (size_t)i;
             for (int k = 0; k < 3; k++) {
-                if (bx[k] < nd->lo[k])
-                    nd->lo[k] = bx[k];
-                if (bx[3 + k] > nd->hi[k])
-                    nd->hi[k] = bx[3 + k];
+                nd->lo[k] = fminf(nd->lo[k], bx[k]);
+                nd->hi[k] = fmaxf(nd->hi[k], bx[3 + k]);
             }
         }
         return id;
     }
-    uint32_t mid = start + (end - start) / 2;
-    uint32_t left = bvh_build_range(b, box, start, mid);
-    uint32_t right = bvh_build_range(b, box, mid, end);
+    uint32_t mid = morton_split(code, start, end);
+    uint32_t left = bvh_build_range(b, code, start, mid);
+    uint32_t right = bvh_build_range(b, code, mid, end);
     nd = &b->nodes[id];
-    nd->start = 0;
-    nd->count = 0;
     nd->right = right;
     for (int k = 0; k < 3; k++) {
-        nd->lo[k] = fmin(b->nodes[left].lo[k], b->nodes[right].lo[k]);
-        nd->hi[k] = fmax(b->nodes[left].hi[k], b->nodes[right].hi[k]);
+        nd->lo[k] = fminf(b->nodes[left].lo[k], b->nodes[right].lo[k]);
+        nd->hi[k] = fmaxf(b->nodes[left].hi[k], b->nodes[right].hi[k]);
     }
     return id;
 }
 
 /* Builds a hierarchy over n boxes (box[6i..6i+5] = lo xyz, hi xyz): boxes
- * sorted by the Morton code of their centres (ties by id), halves split
- * recursively. Deterministic; depth is ceil(log2(n / BVH_LEAF)) + 1. */
-static tessel_status bvh_build(bvh *b, const double *box, size_t n)
+ * sorted by the 30-bit Morton code of their centres (ties by id), ranges
+ * split where the highest differing code bit flips. Deterministic; depth at
+ * most 30 + log2(n), within BVH_STACK. The boxes are copied in leaf order. */
+static tessel_status bvh_build(bvh *b, const float *box, size_t n)
 {
     memset(b, 0, sizeof *b);
     if (n == 0)
@@ -307,16 +344,17 @@ static tessel_status bvh_build(bvh *b, const double *box, size_t n)
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < n; i++)
         for (int k = 0; k < 3; k++) {
-            double c = 0.5 * (box[6 * i + k] + box[6 * i + 3 + k]);
+            double c = 0.5 * ((double)box[6 * i + k] + box[6 * i + 3 + k]);
             lo[k] = fmin(lo[k], c);
             hi[k] = fmax(hi[k], c);
         }
     uint64_t *keys = tsl_alloc_array(n, sizeof *keys);
     uint64_t *tmp = tsl_alloc_array(n, sizeof *tmp);
     b->order = tsl_alloc_array(n, sizeof *b->order);
+    b->box = tsl_alloc_array(n, 6 * sizeof *b->box);
     b->nodes = tsl_alloc_array(2 * n, sizeof *b->nodes);
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!keys || !tmp || !b->order || !b->nodes)
+    if (!keys || !tmp || !b->order || !b->box || !b->nodes)
         goto fail;
     double scale[3];
     for (int k = 0; k < 3; k++)
@@ -324,7 +362,7 @@ static tessel_status bvh_build(bvh *b, const double *box, size_t n)
     for (size_t i = 0; i < n; i++) {
         uint32_t code = 0;
         for (int k = 0; k < 3; k++) {
-            double c = 0.5 * (box[6 * i + k] + box[6 * i + 3 + k]);
+            double c = 0.5 * ((double)box[6 * i + k] + box[6 * i + 3 + k]);
             double q = (c - lo[k]) * scale[k];
             uint32_t qi = q > 0.0 ? (uint32_t)fmin(q, 1023.0) : 0u;
             code |= morton_spread(qi) << k;
@@ -334,11 +372,17 @@ static tessel_status bvh_build(bvh *b, const double *box, size_t n)
     st = radix_sort_u64(keys, tmp, n);
     if (st != TESSEL_OK)
         goto fail;
-    for (size_t i = 0; i < n; i++)
-        b->order[i] = (uint32_t)(keys[i] & 0xffffffffu);
+    /* tmp is free again: it keeps the sorted codes for the splits. */
+    uint32_t *code = (uint32_t *)tmp;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t id = (uint32_t)(keys[i] & 0xffffffffu);
+        b->order[i] = id;
+        code[i] = (uint32_t)(keys[i] >> 32);
+        memcpy(b->box + 6 * i, box + 6 * (size_t)id, 6 * sizeof *box);
+    }
     free(keys);
+    bvh_build_range(b, code, 0, (uint32_t)n);
     free(tmp);
-    bvh_build_range(b, box, 0, (uint32_t)n);
     return TESSEL_OK;
 fail:
     free(keys);
@@ -347,13 +391,15 @@ fail:
     return st;
 }
 
-static inline bool boxes_overlap(const double *alo, const double *ahi, const double *blo,
-                                 const double *bhi)
+static inline bool boxes_overlap(const float *alo, const float *ahi, const float *blo,
+                                 const float *bhi)
 {
     return alo[0] <= bhi[0] && blo[0] <= ahi[0] && alo[1] <= bhi[1] && blo[1] <= ahi[1] &&
            alo[2] <= bhi[2] && blo[2] <= ahi[2];
 }
 
+/* Squared distance from q to a node's box (a lower bound for anything in
+ * it: the float box contains the exact one). */
 static inline double box_dist2(const bvh_node *nd, const double q[3])
 {
     double d2 = 0.0;
@@ -626,7 +672,7 @@ static tessel_status surface_build(surface *s, const tessel_mesh *m, const uint8
         n += kind[f] == KIND_OK;
     s->tri = tsl_alloc_array(n, 9 * sizeof *s->tri);
     s->cum = tsl_alloc_array(n, sizeof *s->cum);
-    double *box = tsl_alloc_array(n, 6 * sizeof *box);
+    float *box = tsl_alloc_array(n, 6 * sizeof *box);
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!s->tri || !s->cum || !box)
         goto fail;
@@ -649,10 +695,10 @@ static tessel_status surface_build(surface *s, const tessel_mesh *m, const uint8
             continue;
         acc += 0.5 * len;
         s->cum[s->count] = acc;
-        double *bx = box + 6 * s->count;
+        float *bx = box + 6 * s->count;
         for (int d = 0; d < 3; d++) {
-            bx[d] = fmin(t[d], fmin(t[3 + d], t[6 + d]));
-            bx[3 + d] = fmax(t[d], fmax(t[3 + d], t[6 + d]));
+            bx[d] = round_down(fmin(t[d], fmin(t[3 + d], t[6 + d])));
+            bx[3 + d] = round_up(fmax(t[d], fmax(t[3 + d], t[6 + d])));
         }
         s->count++;
     }
@@ -678,9 +724,9 @@ static double surface_distance(const surface *s, const double q[3])
         const bvh_node *nd = &s->tree.nodes[stack[--top]];
         if (box_dist2(nd, q) >= best)
             continue;
-        if (nd->count > 0) {
-            for (uint32_t i = 0; i < nd->count; i++) {
-                const double *t = s->tri + 9 * (size_t)s->tree.order[nd->start + i];
+        if (nd->right == 0) {
+            for (uint32_t i = nd->start; i < nd->end; i++) {
+                const double *t = s->tri + 9 * (size_t)s->tree.order[i];
                 double d2 = point_triangle_dist2(q, t, t + 3, t + 6);
                 if (d2 < best)
                     best = d2;
@@ -1188,7 +1234,7 @@ static tessel_status self_intersections(const tessel_mesh *m, const uint8_t *kin
 {
     size_t nf = m->triangle_count, n = 0;
     uint32_t *canon = NULL, *ids = NULL, *pairs = NULL;
-    double *box = NULL;
+    float *box = NULL;
     uint8_t *hit = NULL;
     bvh tree;
     memset(&tree, 0, sizeof tree);
@@ -1209,7 +1255,7 @@ static tessel_status self_intersections(const tessel_mesh *m, const uint8_t *kin
         if (kind[f] != KIND_OK)
             continue;
         ids[n] = (uint32_t)f;
-        double *bx = box + 6 * n;
+        float *bx = box + 6 * n;
         for (int d = 0; d < 3; d++) {
             bx[d] = INFINITY;
             bx[3 + d] = -INFINITY;
@@ -1217,8 +1263,8 @@ static tessel_status self_intersections(const tessel_mesh *m, const uint8_t *kin
         for (int k = 0; k < 3; k++) {
             const float *p = m->xyz + 3 * (size_t)m->triangles[3 * f + k];
             for (int d = 0; d < 3; d++) {
-                bx[d] = fmin(bx[d], p[d]);
-                bx[3 + d] = fmax(bx[3 + d], p[d]);
+                bx[d] = fminf(bx[d], p[d]);
+                bx[3 + d] = fmaxf(bx[3 + d], p[d]);
             }
         }
         n++;
@@ -1227,10 +1273,13 @@ static tessel_status self_intersections(const tessel_mesh *m, const uint8_t *kin
     if (st != TESSEL_OK)
         goto done;
     ptrdiff_t nn = (ptrdiff_t)n;
+    /* Query q (a leaf position) pairs with the positions after it only, so
+     * each pair is seen once and whole subtrees before q are skipped;
+     * consecutive queries walk the same paths. */
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
-    for (ptrdiff_t i = 0; i < nn; i++) {
-        const double *bi = box + 6 * i;
-        uint32_t fi = ids[i], ci[3];
+    for (ptrdiff_t q = 0; q < nn; q++) {
+        const float *bi = tree.box + 6 * q;
+        uint32_t fi = ids[tree.order[q]], ci[3];
         double pi[3][3];
         const double *pip[3] = {pi[0], pi[1], pi[2]};
         for (int k = 0; k < 3; k++) {
@@ -1243,21 +1292,19 @@ static tessel_status self_intersections(const tessel_mesh *m, const uint8_t *kin
         stack[top++] = 0;
         while (top > 0) {
             const bvh_node *nd = &tree.nodes[stack[--top]];
-            if (!boxes_overlap(bi, bi + 3, nd->lo, nd->hi))
+            if (nd->end <= (uint32_t)q + 1 || !boxes_overlap(bi, bi + 3, nd->lo, nd->hi))
                 continue;
-            if (nd->count == 0) {
+            if (nd->right != 0) {
                 stack[top++] = nd->right;
                 stack[top++] = (uint32_t)(nd - tree.nodes) + 1;
                 continue;
             }
-            for (uint32_t e = 0; e < nd->count; e++) {
-                uint32_t j = tree.order[nd->start + e];
-                if (j <= (uint32_t)i)
-                    continue; /* each unordered pair once */
-                const double *bj = box + 6 * (size_t)j;
+            uint32_t first = nd->start > (uint32_t)q + 1 ? nd->start : (uint32_t)q + 1;
+            for (uint32_t r = first; r < nd->end; r++) {
+                const float *bj = tree.box + 6 * (size_t)r;
                 if (!boxes_overlap(bi, bi + 3, bj, bj + 3))
                     continue;
-                uint32_t fj = ids[j], cj[3];
+                uint32_t fj = ids[tree.order[r]], cj[3];
                 double pj[3][3];
                 const double *pjp[3] = {pj[0], pj[1], pj[2]};
                 for (int k = 0; k < 3; k++) {
@@ -1275,7 +1322,7 @@ static tessel_status self_intersections(const tessel_mesh *m, const uint8_t *kin
                 }
             }
         }
-        pairs[i] = count;
+        pairs[q] = count;
     }
     size_t total = 0, faces = 0;
     for (size_t i = 0; i < n; i++)
@@ -1367,14 +1414,13 @@ static tessel_status input_figures(const tessel_mesh *m, const surface *s,
 
     /* Referenced vertices as zero-size boxes. */
     uint8_t *ref = tsl_calloc_array(m->vertex_count, 1);
-    uint32_t *vid = tsl_alloc_array(m->vertex_count, sizeof *vid);
-    double *vbox = tsl_alloc_array(m->vertex_count, 6 * sizeof *vbox);
+    float *vbox = tsl_alloc_array(m->vertex_count, 6 * sizeof *vbox);
     double *d = tsl_alloc_array(np, sizeof *d);
     uint8_t *used = tsl_calloc_array(np, 1);
     bvh vt;
     memset(&vt, 0, sizeof vt);
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!ref || !vid || !vbox || !d || !used)
+    if (!ref || !vbox || !d || !used)
         goto done;
     for (size_t i = 0; i < 3 * m->triangle_count; i++)
         ref[m->triangles[i]] = 1;
@@ -1382,7 +1428,6 @@ static tessel_status input_figures(const tessel_mesh *m, const surface *s,
     for (size_t v = 0; v < m->vertex_count; v++) {
         if (!ref[v])
             continue;
-        vid[nref] = (uint32_t)v;
         for (int k = 0; k < 3; k++)
             vbox[6 * nref + k] = vbox[6 * nref + 3 + k] = m->xyz[3 * v + k];
         nref++;
@@ -1403,8 +1448,11 @@ static tessel_status input_figures(const tessel_mesh *m, const surface *s,
             d[i] = surface_distance(s, q);
         if (nref == 0)
             continue;
-        double qlo[3] = {q[0] - tol, q[1] - tol, q[2] - tol};
-        double qhi[3] = {q[0] + tol, q[1] + tol, q[2] + tol};
+        float qlo[3], qhi[3];
+        for (int k = 0; k < 3; k++) {
+            qlo[k] = round_down(q[k] - tol);
+            qhi[k] = round_up(q[k] + tol);
+        }
         uint32_t stack[BVH_STACK];
         int top = 0;
         stack[top++] = 0;
@@ -1412,13 +1460,13 @@ static tessel_status input_figures(const tessel_mesh *m, const surface *s,
             const bvh_node *nd = &vt.nodes[stack[--top]];
             if (!boxes_overlap(qlo, qhi, nd->lo, nd->hi))
                 continue;
-            if (nd->count == 0) {
+            if (nd->right != 0) {
                 stack[top++] = nd->right;
                 stack[top++] = (uint32_t)(nd - vt.nodes) + 1;
                 continue;
             }
-            for (uint32_t e = 0; e < nd->count; e++) {
-                const double *vb = vbox + 6 * (size_t)vt.order[nd->start + e];
+            for (uint32_t e = nd->start; e < nd->end; e++) {
+                const float *vb = vt.box + 6 * (size_t)e;
                 double dd[3] = {vb[0] - q[0], vb[1] - q[1], vb[2] - q[2]};
                 if (sqrt(tsl_dot(dd, dd)) <= tol) {
                     used[i] = 1;
@@ -1448,7 +1496,6 @@ static tessel_status input_figures(const tessel_mesh *m, const surface *s,
     st = TESSEL_OK;
 done:
     free(ref);
-    free(vid);
     free(vbox);
     free(d);
     free(used);
