@@ -211,7 +211,7 @@ static float local_coord(double world, double offset)
 {
     double d = world - offset;
     float f = (float)d;
-    if (floor((double)f) > floor(d))
+    if ((double)f > d && floor((double)f) > floor(d))
         f = nextafterf(f, -INFINITY);
     return f;
 }
@@ -260,11 +260,14 @@ static void compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
     /* In place: float j lands at byte 4j, below double j's byte 8j, which
      * has been read already. memcpy keeps it free of aliasing trouble. */
     unsigned char *mem = (unsigned char *)b->xyz;
-    for (size_t j = 0; j < 3 * kept; j++) {
-        double w;
-        memcpy(&w, mem + 8 * j, sizeof w);
-        float f = local_coord(w, offset[j % 3]);
-        memcpy(mem + 4 * j, &f, sizeof f);
+    for (size_t i = 0; i < kept; i++) {
+        for (int a = 0; a < 3; a++) {
+            size_t j = 3 * i + (size_t)a;
+            double w;
+            memcpy(&w, mem + 8 * j, sizeof w);
+            float f = local_coord(w, offset[a]);
+            memcpy(mem + 4 * j, &f, sizeof f);
+        }
     }
     b->count = kept;
 }

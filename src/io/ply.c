@@ -117,30 +117,40 @@ static int vertex_role(const char *s, size_t n)
     return R_NONE;
 }
 
-static double decode(const uint8_t *p, int type, int big)
+/* Loads in the file's byte order; compilers turn these into plain or
+ * byte-swapped loads. */
+static inline uint16_t load16(const uint8_t *p, int big)
 {
-    uint64_t u = 0;
-    unsigned n = type_size[type];
-    if (big)
-        for (unsigned i = 0; i < n; i++)
-            u = (u << 8) | p[i];
-    else
-        for (unsigned i = n; i-- > 0;)
-            u = (u << 8) | p[i];
+    return big ? (uint16_t)(p[0] << 8 | p[1]) : (uint16_t)(p[1] << 8 | p[0]);
+}
+static inline uint32_t load32(const uint8_t *p, int big)
+{
+    return big ? (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3]
+               : (uint32_t)p[3] << 24 | (uint32_t)p[2] << 16 | (uint32_t)p[1] << 8 | p[0];
+}
+static inline uint64_t load64(const uint8_t *p, int big)
+{
+    uint64_t a = load32(p, big), b = load32(p + 4, big);
+    return big ? a << 32 | b : b << 32 | a;
+}
+
+static inline double decode(const uint8_t *p, int type, int big)
+{
     switch (type) {
-    case T_I8: return (double)(int8_t)(uint8_t)u;
-    case T_U8: return (double)(uint8_t)u;
-    case T_I16: return (double)(int16_t)(uint16_t)u;
-    case T_U16: return (double)(uint16_t)u;
-    case T_I32: return (double)(int32_t)(uint32_t)u;
-    case T_U32: return (double)(uint32_t)u;
+    case T_I8: return (double)(int8_t)p[0];
+    case T_U8: return (double)p[0];
+    case T_I16: return (double)(int16_t)load16(p, big);
+    case T_U16: return (double)load16(p, big);
+    case T_I32: return (double)(int32_t)load32(p, big);
+    case T_U32: return (double)load32(p, big);
     case T_F32: {
-        uint32_t b = (uint32_t)u;
+        uint32_t u = load32(p, big);
         float f;
-        memcpy(&f, &b, sizeof f);
+        memcpy(&f, &u, sizeof f);
         return (double)f;
     }
     default: {
+        uint64_t u = load64(p, big);
         double d;
         memcpy(&d, &u, sizeof d);
         return d;
@@ -629,11 +639,31 @@ static tessel_status binary_element(ply_reader *r, tsl_builder *b, const ply_ele
     if (e->fixed) {
         /* Fixed-size vertex records, all inside the data (checked). */
         const uint8_t *p = r->data + r->pos;
+        const ply_prop *px = &e->props[r->role_prop[R_X]], *py = &e->props[r->role_prop[R_Y]],
+                       *pz = &e->props[r->role_prop[R_Z]];
+        if (!r->has_normals && !r->has_rgb && px->type == py->type && px->type == pz->type &&
+            (px->type == T_F32 || px->type == T_F64)) {
+            /* The common case, x y z only, without the per-role loop. */
+            const size_t ox = px->offset, oy = py->offset, oz = pz->offset;
+            const int type = px->type;
+            for (uint64_t i = 0; i < e->count; i++, p += e->min_bytes) {
+                double xyz[3] = {decode(p + ox, type, big), decode(p + oy, type, big),
+                                 decode(p + oz, type, big)};
+                tessel_status st = tsl_builder_point(b, xyz, NULL, NULL);
+                if (st != TESSEL_OK)
+                    return fail_builder(r, st);
+            }
+            r->pos += (size_t)e->count * e->min_bytes;
+            return TESSEL_OK;
+        }
+        int roles[R_COUNT], nroles = 0;
+        for (int k = 0; k < R_COUNT; k++)
+            if (r->role_prop[k] >= 0)
+                roles[nroles++] = k;
         for (uint64_t i = 0; i < e->count; i++, p += e->min_bytes) {
-            for (int k = 0; k < R_COUNT; k++) {
-                int pi = r->role_prop[k];
-                if (pi >= 0)
-                    val[k] = decode(p + e->props[pi].offset, e->props[pi].type, big);
+            for (int k = 0; k < nroles; k++) {
+                const ply_prop *pp = &e->props[r->role_prop[roles[k]]];
+                val[roles[k]] = decode(p + pp->offset, pp->type, big);
             }
             tessel_status st = emit_vertex(r, b, val);
             if (st != TESSEL_OK)

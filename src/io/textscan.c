@@ -259,7 +259,7 @@ static float local_coord(double world, double offset)
 {
     double d = world - offset;
     float f = (float)d;
-    if (floor((double)f) > floor(d))
+    if ((double)f > d && floor((double)f) > floor(d))
         f = nextafterf(f, -INFINITY);
     return f;
 }
