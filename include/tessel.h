@@ -546,6 +546,193 @@ TESSEL_API tessel_status tessel_render(const tessel_mesh *mesh,
 /* src/cluster.c, src/simplify.c)                                            */
 /* ------------------------------------------------------------------------ */
 
+/* Mederos, Velho & de Figueiredo 2003, "Smooth surface reconstruction from
+ * noisy clouds", steps 1-3 (sections 2.1-2.3). Pipeline:
+ *   tessel_smooth()   noisy cloud -> smoothed cloud with normals
+ *   tessel_cluster()  smoothed cloud -> BSP clusters
+ *   tessel_representatives()  clusters -> one point per cluster
+ * or tessel_simplify() for the last two in one call. See docs/smooth.md. */
+
+/* The robust projection operator Q (section 2.1): a point p moves to
+ * p + t n, where the plane through p + t n with unit normal n minimises
+ *   sum over the neighbours q of rho(h_q) w(|q - p|),
+ *   h_q = n.(q - p - t n), rho(x) = 1 - exp(-x^2 / (2 sigma_rho^2)),
+ *   w(x) = exp(-x^2 / (2 sigma_w^2)),
+ * found by iteratively reweighted least squares (weighted PCA for n,
+ * weighted mean height for t) from the Gaussian-weighted PCA plane. The
+ * neighbours of p are its k nearest cloud points within 3 sigma_w (farther
+ * ones would weigh less than 1.1%), p itself included when it is a cloud
+ * point. */
+typedef struct tessel_smooth_params {
+    uint32_t k;               /* at most this many neighbours; default 24
+                                 (3..256) */
+    double sigma_rho;         /* scale of the robust error norm, multiple of
+                                 the spacing h: heights beyond ~2 sigma_rho
+                                 count as outliers; default 1.5 (> 0; the
+                                 paper uses 1-2.5) */
+    double sigma_w;           /* scale of the Gaussian distance weight,
+                                 multiple of h; default 2 (> 0; the paper
+                                 uses 1.5-3) */
+    uint32_t passes;          /* smoothing passes, each on the previous
+                                 pass's output; default 1 (1..100; ignored
+                                 by projections) */
+    uint32_t max_iterations;  /* IRLS iteration cap per point; default 20
+                                 (1..1000) */
+    double tolerance;         /* IRLS stops when the plane's offset moves
+                                 less than tolerance*h and its normal turns
+                                 less than tolerance radians; default 1e-3
+                                 (> 0) */
+    uint32_t min_neighbors;   /* a fit needs at least this many neighbours
+                                 (the point itself included); with fewer
+                                 the point stays put and is counted as
+                                 unfit; default 6 (3..k) */
+    double spacing;           /* h in world units; 0 (default) estimates it
+                                 with tessel_cloud_spacing() */
+    int threads;              /* 0 = OpenMP default (honours
+                                 OMP_NUM_THREADS) */
+} tessel_smooth_params;
+TESSEL_API tessel_smooth_params tessel_smooth_params_default(void);
+
+typedef struct tessel_smooth_stats {
+    double spacing;           /* h used, world units */
+    size_t unfit;             /* points left in place because their fit had
+                                 too few neighbours or a degenerate
+                                 (collinear) neighbourhood, summed over
+                                 passes */
+    size_t unconverged;       /* fits that reached max_iterations, summed
+                                 over passes (their last plane is used) */
+    double mean_iterations;   /* IRLS iterations per fitted point, over all
+                                 passes */
+    double rms_displacement;  /* RMS distance from each input point to its
+                                 output position, world units */
+    double max_displacement;  /* largest such distance */
+} tessel_smooth_stats;
+
+/* Robust smoothing (section 2.1): writes to *out a new cloud with every
+ * point moved to Q(p), computed from the previous pass's positions only, and
+ * normals set to the fitted planes' normals n*. Sign of n*: agreeing with
+ * the normal of the nearest cloud point when the cloud has normals, else
+ * facing the cloud's viewpoint when it has one, else arbitrary (orient
+ * them later if needed). Unfit points keep their position; their normal is
+ * the smallest-eigenvalue direction of their neighbours' unweighted
+ * covariance. Colours, offset, viewpoint and grid are copied. params and
+ * stats may be NULL. Needs at least 3 points and a non-zero spacing
+ * (TESSEL_ERR_TOO_FEW_POINTS). On error *out is zeroed. */
+TESSEL_API tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
+                                       const tessel_smooth_params *params,
+                                       const tessel_callbacks *callbacks,
+                                       tessel_smooth_stats *stats);
+
+/* The operator Q over a fixed cloud, for projecting arbitrary points (the
+ * representatives here, edge midpoints in refinement). Keeps a pointer to
+ * cloud->xyz, which must outlive it unchanged. With params->spacing 0 the
+ * spacing is estimated from the cloud. tessel_projector_spacing() returns
+ * the h in use (world units). */
+typedef struct tessel_projector tessel_projector;
+TESSEL_API tessel_status tessel_projector_create(tessel_projector **projector,
+                                                 const tessel_cloud *cloud,
+                                                 const tessel_smooth_params *params);
+TESSEL_API void tessel_projector_destroy(tessel_projector *projector);
+TESSEL_API double tessel_projector_spacing(const tessel_projector *projector);
+
+/* Projects q (local coordinates of the projector's cloud) to out = Q(q) and
+ * writes the fitted unit normal to normal (may be NULL; sign as in
+ * tessel_smooth). Returns TESSEL_OK, or TESSEL_ERR_TOO_FEW_POINTS when q has
+ * no robust fit (out = q; normal from the plain covariance of its k nearest
+ * points). *iterations (may be NULL) receives the IRLS iterations used, 0
+ * when unfit. For a cloud point the result is bit for bit the one
+ * tessel_smooth computes. Thread-safe; never allocates. */
+TESSEL_API tessel_status tessel_project(const tessel_projector *projector, const float q[3],
+                                        float out[3], float normal[3],
+                                        uint32_t *iterations);
+
+/* BSP clustering (section 2.2). A node (a set of points) is split in two
+ * when it holds more than n_min points and its flatness
+ * sigma = l1 / (l1 + l2 + l3) (covariance eigenvalues l1 <= l2 <= l3)
+ * exceeds sigma_max; the points are then classified by the side of the
+ * node's regression plane (through the centroid, spanned by the two
+ * largest eigenvectors) they lie on, as in the paper. A node wider than
+ * max_diameter is split too, whatever its size and flatness, by the plane
+ * through its centroid across its largest eigenvector: this keeps clusters
+ * local, so that flat regions do not become one huge cluster with one
+ * representative, and stops regression-plane splits of curved caps from
+ * leaving ring-shaped clusters whose centroid lies off the ring. Leaves are
+ * the clusters. */
+typedef struct tessel_cluster_params {
+    double sigma_max;         /* flatness tolerance; default 0.01
+                                 (0..1/3; 1/3 disables the flatness test) */
+    uint32_t n_min;           /* nodes with at most this many points are not
+                                 split for flatness; default 10 (>= 1) */
+    double max_diameter;      /* multiple of the spacing h: every point of
+                                 a cluster lies within max_diameter/2 of
+                                 its centroid; default 8 (> 0; INFINITY
+                                 disables) */
+    double spacing;           /* h in world units; 0 (default) estimates it */
+    int threads;              /* 0 = OpenMP default */
+} tessel_cluster_params;
+TESSEL_API tessel_cluster_params tessel_cluster_params_default(void);
+
+/* Clusters of a cloud: every point is in exactly one cluster. Cluster c
+ * holds the points order[offsets[c] .. offsets[c+1]), in increasing index
+ * order; clusters are numbered in depth-first order of the BSP tree. */
+typedef struct tessel_clusters {
+    size_t point_count;       /* points clustered */
+    size_t count;             /* number of clusters */
+    uint32_t *labels;         /* point_count: cluster of each point */
+    uint32_t *order;          /* point_count point indices grouped by cluster */
+    size_t *offsets;          /* count + 1 entries; offsets[count] ==
+                                 point_count */
+    double spacing;           /* h used, world units */
+} tessel_clusters;
+
+/* Clusters the cloud (normally the output of tessel_smooth). params may be
+ * NULL. On error *clusters is zeroed. */
+TESSEL_API tessel_status tessel_cluster(const tessel_cloud *cloud,
+                                        const tessel_cluster_params *params,
+                                        const tessel_callbacks *callbacks,
+                                        tessel_clusters *clusters);
+/* Frees the arrays and zeroes the struct; NULL and zeroed structs are fine. */
+TESSEL_API void tessel_clusters_free(tessel_clusters *clusters);
+
+typedef struct tessel_simplify_params {
+    tessel_cluster_params cluster;    /* defaults as above */
+    tessel_smooth_params projection;  /* the operator Q projecting centroids
+                                         (passes is ignored); defaults as
+                                         above */
+    int keep_unfit;                   /* 1: a cluster whose centroid has no
+                                         robust fit keeps its centroid as
+                                         representative; 0 (default): it gets
+                                         none (isolated outliers) */
+} tessel_simplify_params;
+TESSEL_API tessel_simplify_params tessel_simplify_params_default(void);
+
+typedef struct tessel_simplify_stats {
+    double spacing;           /* h used, world units */
+    size_t clusters;          /* clusters found */
+    size_t representatives;   /* points written */
+    size_t unfit;             /* clusters whose centroid had no robust fit */
+} tessel_simplify_stats;
+
+/* Reduction (section 2.3): one representative per cluster, Q(c) for the
+ * cluster's centroid c, projected onto `cloud` (the cloud that was
+ * clustered). *out gets the representatives in cluster order, normals set
+ * to the fitted planes' normals (sign as in tessel_smooth), colours (when
+ * the cloud has them) the cluster's mean. params and stats may be NULL; a
+ * spacing of 0 in params uses clusters->spacing. On error *out is zeroed. */
+TESSEL_API tessel_status tessel_representatives(const tessel_cloud *cloud,
+                                                const tessel_clusters *clusters,
+                                                const tessel_simplify_params *params,
+                                                const tessel_callbacks *callbacks,
+                                                tessel_cloud *out,
+                                                tessel_simplify_stats *stats);
+
+/* tessel_cluster() then tessel_representatives() in one call (the spacing
+ * is estimated once when both params leave it 0). */
+TESSEL_API tessel_status tessel_simplify(const tessel_cloud *cloud, tessel_cloud *out,
+                                         const tessel_simplify_params *params,
+                                         const tessel_callbacks *callbacks,
+                                         tessel_simplify_stats *stats);
+
 /* ------------------------------------------------------------------------ */
 /* Noisy clouds: advancing front and refinement (src/advancing_front.c,      */
 /* src/refine.c)                                                             */
