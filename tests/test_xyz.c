@@ -32,6 +32,20 @@ static void test_basic(void)
     }
     tessel_cloud_free(&c);
 
+    /* Six integer columns with colour values are x y z r g b... */
+    CHECK(parse("1 2 3 255 0 0\n4 5 6 0 128 64\n7 8 9 0 0 1\n", &c, &d) == TESSEL_OK);
+    CHECK(c.count == 3 && !c.normals && c.rgb);
+    if (c.rgb)
+        CHECK(c.rgb[0] == 255 && c.rgb[4] == 128 && c.rgb[5] == 64 && c.rgb[8] == 1);
+    tessel_cloud_free(&c);
+    /* ...but unit-length integer vectors stay normals. */
+    CHECK(parse("1 2 3 0 0 1\n4 5 6 1 0 0\n", &c, &d) == TESSEL_OK);
+    CHECK(c.count == 2 && c.normals && !c.rgb);
+    tessel_cloud_free(&c);
+    /* Quoted CSV column names. */
+    CHECK(parse("\"x\",\"y\",\"z\"\n1,2,3\n", &c, &d) == TESSEL_OK && c.count == 1);
+    tessel_cloud_free(&c);
+
     /* Empty input and comment-only input give an empty cloud. */
     CHECK(parse("", &c, &d) == TESSEL_OK && c.count == 0);
     tessel_cloud_free(&c);

@@ -5,7 +5,10 @@
  *  - values separated by blanks, ',' or ';'; blank lines and comment lines
  *    ('#' or '//') skipped;
  *  - without column names, 3 numbers per line are x y z and 6 are x y z
- *    nx ny nz; every line must have as many numbers as the first;
+ *    nx ny nz; every line must have as many numbers as the first. Six
+ *    columns whose last three are all integers in 0-255 and not unit
+ *    vectors (some longer than 1.5) are x y z r g b, the other common habit:
+ *    no normal looks like that;
  *  - a first line of column names ("x,y,z,nx,ny,nz", also as a comment such
  *    as CloudCompare's "//X,Y,Z,R,G,B") maps the columns by name: x y z,
  *    nx ny nz (or normal_x ...), r g b (or red green blue); other columns
@@ -19,6 +22,7 @@
  * by a header ("# x y z r g b" in XYZ) so the file reads back as written. */
 #include "io_internal.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 enum { XYZ_MAX_COLUMNS = 64 };
@@ -122,11 +126,17 @@ static bool parse_header(const char *p, const char *end, xyz_layout *lay)
     p = skip_separator(p, end);
     while (p < end) {
         const char *e = token_end(p, end);
-        char c = (char)(*p | 0x20);
-        if (e == p || !((c >= 'a' && c <= 'z') || *p == '_') ||
+        /* spreadsheets quote their column names: "x","y","z" */
+        const char *ns = p, *ne = e;
+        if (ne - ns >= 2 && *ns == '"' && ne[-1] == '"') {
+            ns++;
+            ne--;
+        }
+        char c = (char)(*ns | 0x20);
+        if (ne == ns || !((c >= 'a' && c <= 'z') || *ns == '_') ||
             l.columns == XYZ_MAX_COLUMNS)
             return false;
-        int r = role_of_name(p, (size_t)(e - p));
+        int r = role_of_name(ns, (size_t)(ne - ns));
         if (r != COL_SKIP && seen[r])
             r = COL_SKIP;  /* a repeated name: the first one counts */
         if (r != COL_SKIP)
@@ -237,6 +247,24 @@ static bool single_integer(const char *s, const char *e, uint64_t *n)
     return p == e;
 }
 
+/* The unnamed 6-column file turned out to hold colours, not normals: move
+ * the values over (the builder keeps its arrays at b->cap points). */
+static tessel_status normals_to_colours(tsl_builder *b)
+{
+    uint8_t *rgb = tsl_alloc_array(b->cap ? b->cap : 1, 3);
+    if (!rgb)
+        return TESSEL_ERR_NOMEM;
+    for (size_t i = 0; i < 3 * b->count; i++)
+        rgb[i] = (uint8_t)b->normals[i];
+    free(b->normals);
+    free(b->rgb);
+    b->normals = NULL;
+    b->has_normals = 0;
+    b->rgb = rgb;
+    b->has_rgb = 1;
+    return TESSEL_OK;
+}
+
 tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag)
 {
@@ -247,6 +275,8 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
     int have_layout = 0, have_comment_header = 0, pts = 0;
     /* PTS block bookkeeping: points expected / seen in the current block. */
     uint64_t block_expected = 0, block_seen = 0, block_line = 0;
+    /* For unnamed 6-column files: could columns 4-6 be colours? */
+    bool colour_like = true, long_vector = false;
     tessel_status st;
 
     while (next_line(&it, &s, &e)) {
@@ -264,7 +294,7 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
             continue;
         }
         uint64_t count;
-        if (single_integer(s, e, &count) && (pts || !have_layout)) {
+        if ((pts || !have_layout) && single_integer(s, e, &count)) {
             /* A PTS block count; the previous block must be complete. */
             if (pts && block_seen != block_expected) {
                 tsl_diag_set(diag, name, block_line, 0, 0,
@@ -349,6 +379,14 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
                              (unsigned long long)lay.defined_at, got);
             return TESSEL_ERR_PARSE;
         }
+        if (lay.has_normals && !lay.named && colour_like) {
+            double len2 = 0;
+            for (int k = COL_NX; k <= COL_NZ; k++) {
+                colour_like = colour_like && v[k] >= 0 && v[k] <= 255 && v[k] == floor(v[k]);
+                len2 += v[k] * v[k];
+            }
+            long_vector = long_vector || len2 > 2.25;
+        }
         float normal[3] = {(float)v[COL_NX], (float)v[COL_NY], (float)v[COL_NZ]};
         st = tsl_builder_point(b, v, lay.has_normals ? normal : NULL,
                                lay.has_rgb ? rgb : NULL);
@@ -364,6 +402,13 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
                      "PTS block announces %llu points but has %llu",
                      (unsigned long long)block_expected, (unsigned long long)block_seen);
         return TESSEL_ERR_PARSE;
+    }
+    if (have_layout && lay.has_normals && !lay.named && colour_like && long_vector) {
+        st = normals_to_colours(b);
+        if (st != TESSEL_OK) {
+            tsl_diag_set(diag, name, it.line, 0, 0, "%s", tessel_status_str(st));
+            return st;
+        }
     }
     return TESSEL_OK;
 }
