@@ -650,6 +650,8 @@ typedef struct surface {
     size_t count;
     double *tri;  /* count*9 */
     double *cum;  /* count, running sum of areas */
+    double slack; /* absolute rounding allowance of a distance, 1e-9 of the
+                     largest coordinate */
     bvh tree;
 } surface;
 
@@ -695,6 +697,8 @@ static tessel_status surface_build(surface *s, const tessel_mesh *m, const uint8
             continue;
         acc += 0.5 * len;
         s->cum[s->count] = acc;
+        for (int k = 0; k < 9; k++)
+            s->slack = fmax(s->slack, 1e-9 * fabs(t[k]));
         float *bx = box + 6 * s->count;
         for (int d = 0; d < 3; d++) {
             bx[d] = round_down(fmin(t[d], fmin(t[3 + d], t[6 + d])));
@@ -713,10 +717,18 @@ fail:
     return st;
 }
 
-/* Distance from q to the surface (which must not be empty). */
-static double surface_distance(const surface *s, const double q[3])
+/* Distance from q to the surface (which must not be empty). bound is an
+ * upper bound of the distance known beforehand (INFINITY if none): subtrees
+ * farther than it are never opened. The result is the smallest computed
+ * triangle distance either way. */
+static double surface_distance(const surface *s, const double q[3], double bound)
 {
     double best = INFINITY;
+    if (bound < INFINITY) {
+        double b = bound * (1.0 + 1e-9) + s->slack; /* rounding of the bound */
+        best = b * b;
+    }
+    bool found = false;
     uint32_t stack[BVH_STACK];
     int top = 0;
     stack[top++] = 0;
@@ -728,8 +740,10 @@ static double surface_distance(const surface *s, const double q[3])
             for (uint32_t i = nd->start; i < nd->end; i++) {
                 const double *t = s->tri + 9 * (size_t)s->tree.order[i];
                 double d2 = point_triangle_dist2(q, t, t + 3, t + 6);
-                if (d2 < best)
+                if (d2 < best) {
                     best = d2;
+                    found = true;
+                }
             }
             continue;
         }
@@ -748,7 +762,111 @@ static double surface_distance(const surface *s, const double q[3])
                 stack[top++] = r;
         }
     }
+    if (!found && bound < INFINITY)
+        return surface_distance(s, q, INFINITY); /* a bound that was too tight */
     return sqrt(best);
+}
+
+/* Points whose distance to a surface is wanted: doubles, or floats plus a
+ * shift into the surface's frame. */
+typedef struct query_points {
+    size_t count;
+    const double *xyz;  /* count*3, or NULL */
+    const float *fxyz;  /* count*3 when xyz is NULL */
+    double shift[3];
+} query_points;
+
+static inline bool query_get(const query_points *qp, size_t i, double q[3])
+{
+    if (qp->xyz) {
+        q[0] = qp->xyz[3 * i], q[1] = qp->xyz[3 * i + 1], q[2] = qp->xyz[3 * i + 2];
+    } else {
+        const float *f = qp->fxyz + 3 * i;
+        if (!isfinite(f[0]) || !isfinite(f[1]) || !isfinite(f[2]))
+            return false;
+        for (int k = 0; k < 3; k++)
+            q[k] = (double)f[k] + qp->shift[k];
+    }
+    return true;
+}
+
+/* Queries run in blocks of this many points, consecutive in Morton order. */
+#define QUERY_BLOCK 32
+
+/* d[i] = distance from point i to s (NaN for non-finite points). Points
+ * are visited in Morton order in fixed blocks; within a block each search
+ * starts from the bound the previous point gives (its distance plus the
+ * step between them, by the triangle inequality), which prunes far
+ * queries hard. Blocks do not depend on the thread count, so neither do
+ * the results. */
+static tessel_status surface_distances(const surface *s, const query_points *qp, double *d,
+                                       int threads)
+{
+    size_t n = qp->count;
+    if (n == 0)
+        return TESSEL_OK;
+    if (n >= UINT32_MAX)
+        return TESSEL_ERR_LIMIT;
+    uint64_t *keys = tsl_alloc_array(n, sizeof *keys);
+    uint64_t *tmp = tsl_alloc_array(n, sizeof *tmp);
+    if (!keys || !tmp) {
+        free(keys);
+        free(tmp);
+        return TESSEL_ERR_NOMEM;
+    }
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; i++) {
+        double q[3];
+        if (!query_get(qp, i, q))
+            continue;
+        for (int k = 0; k < 3; k++) {
+            lo[k] = fmin(lo[k], q[k]);
+            hi[k] = fmax(hi[k], q[k]);
+        }
+    }
+    double scale[3];
+    for (int k = 0; k < 3; k++)
+        scale[k] = hi[k] > lo[k] ? 1023.0 / (hi[k] - lo[k]) : 0.0;
+    for (size_t i = 0; i < n; i++) {
+        double q[3];
+        uint32_t code = 0;
+        if (query_get(qp, i, q))
+            for (int k = 0; k < 3; k++) {
+                double c = (q[k] - lo[k]) * scale[k];
+                code |= morton_spread(c > 0.0 ? (uint32_t)fmin(c, 1023.0) : 0u) << k;
+            }
+        keys[i] = ((uint64_t)code << 32) | (uint64_t)i;
+    }
+    tessel_status st = radix_sort_u64(keys, tmp, n);
+    free(tmp);
+    if (st != TESSEL_OK) {
+        free(keys);
+        return st;
+    }
+    ptrdiff_t blocks = (ptrdiff_t)((n + QUERY_BLOCK - 1) / QUERY_BLOCK);
+#pragma omp parallel for schedule(dynamic, 8) num_threads(threads)
+    for (ptrdiff_t b = 0; b < blocks; b++) {
+        size_t end = (size_t)b * QUERY_BLOCK + QUERY_BLOCK;
+        if (end > n)
+            end = n;
+        double prev[3] = {0, 0, 0}, prev_d = INFINITY;
+        for (size_t k = (size_t)b * QUERY_BLOCK; k < end; k++) {
+            size_t i = (size_t)(keys[k] & 0xffffffffu);
+            double q[3];
+            if (!query_get(qp, i, q)) {
+                d[i] = NAN;
+                continue;
+            }
+            double step[3];
+            tsl_sub(q, prev, step);
+            double bound = prev_d < INFINITY ? prev_d + tsl_norm(step) : INFINITY;
+            d[i] = surface_distance(s, q, bound);
+            prev[0] = q[0], prev[1] = q[1], prev[2] = q[2];
+            prev_d = d[i];
+        }
+    }
+    free(keys);
+    return TESSEL_OK;
 }
 
 /* MT19937-64 (the generator std::mt19937_64 implements). */
@@ -838,10 +956,13 @@ static tessel_status directed(const surface *from, const surface *to, size_t n, 
         return TESSEL_ERR_NOMEM;
     }
     surface_sample(from, n, seed, pts);
-    ptrdiff_t nn = (ptrdiff_t)n;
-#pragma omp parallel for schedule(dynamic, 1024) num_threads(threads)
-    for (ptrdiff_t i = 0; i < nn; i++)
-        d[i] = surface_distance(to, pts + 3 * i);
+    query_points qp = {n, pts, NULL, {0, 0, 0}};
+    tessel_status st = surface_distances(to, &qp, d, threads);
+    if (st != TESSEL_OK) {
+        free(pts);
+        free(d);
+        return st;
+    }
     double sum = 0.0, mx = 0.0;
     size_t within = 0;
     for (size_t i = 0; i < n; i++) {
@@ -1435,19 +1556,20 @@ static tessel_status input_figures(const tessel_mesh *m, const surface *s,
     st = bvh_build(&vt, vbox, nref);
     if (st != TESSEL_OK)
         goto done;
+    if (s->count > 0) {
+        query_points qp = {np, NULL, cloud->xyz, {shift[0], shift[1], shift[2]}};
+        st = surface_distances(s, &qp, d, threads);
+        if (st != TESSEL_OK)
+            goto done;
+    }
     const double tol = 1e-9 * diag;
     ptrdiff_t nn = (ptrdiff_t)np;
 #pragma omp parallel for schedule(dynamic, 1024) num_threads(threads)
     for (ptrdiff_t i = 0; i < nn; i++) {
         const float *pf = cloud->xyz + 3 * i;
-        d[i] = NAN;
-        if (!isfinite(pf[0]) || !isfinite(pf[1]) || !isfinite(pf[2]))
+        if (nref == 0 || !isfinite(pf[0]) || !isfinite(pf[1]) || !isfinite(pf[2]))
             continue;
         double q[3] = {pf[0] + shift[0], pf[1] + shift[1], pf[2] + shift[2]};
-        if (s->count > 0)
-            d[i] = surface_distance(s, q);
-        if (nref == 0)
-            continue;
         float qlo[3], qhi[3];
         for (int k = 0; k < 3; k++) {
             qlo[k] = round_down(q[k] - tol);

@@ -15,6 +15,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 
 /* ---- helpers ---- */
 
@@ -443,6 +444,73 @@ static void test_meshcheck_agreement(void)
                  20000);
 }
 
+/* Same figures whatever the thread count. */
+static void test_threads(void)
+{
+    tessel_mesh m, ref;
+    tessel_cloud c;
+    if (!read_off("hole.off", &m) || !read_off("sphere_fine.off", &ref) ||
+        !read_off_cloud("sphere_cloud.off", &c)) {
+        CHECK(0);
+        return;
+    }
+    tessel_check_params p = tessel_check_params_default();
+    p.input = &c;
+    p.reference = &ref;
+    p.samples = 5000;
+    tessel_mesh_report r[2];
+    for (int t = 0; t < 2; t++) {
+        p.threads = t == 0 ? 1 : 3;
+        CHECK(tessel_mesh_check(&m, &p, &r[t]) == TESSEL_OK);
+    }
+    CHECK(r[0].edges == r[1].edges && r[0].self_intersections == r[1].self_intersections);
+    CHECK(r[0].input_as_vertices == r[1].input_as_vertices);
+    CHECK(r[0].input_distance_mean == r[1].input_distance_mean);
+    CHECK(r[0].input_distance_max == r[1].input_distance_max);
+    CHECK(r[0].chamfer == r[1].chamfer && r[0].hausdorff == r[1].hausdorff);
+    CHECK(r[0].fscore == r[1].fscore);
+    tessel_mesh_free(&m);
+    tessel_mesh_free(&ref);
+    tessel_cloud_free(&c);
+}
+
+/* The CLI: exit 0 for a valid manifold (boundaries allowed), 4 for an
+ * invalid one, 2 for a missing file, 1 for a bad command line. */
+static int run_cli(const char *args)
+{
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "\"%s\" check %s > /dev/null 2>&1", TESSEL_CLI, args);
+    int rc = system(cmd);
+    return rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+static void test_cli(void)
+{
+    char args[1536];
+    const char *d = TESSEL_TEST_DATA "/check";
+    snprintf(args, sizeof args, "%s/sphere.off", d);
+    CHECK(run_cli(args) == 0);
+    snprintf(args, sizeof args, "%s/hole.off --json", d);
+    CHECK(run_cli(args) == 0);
+    static const char *const invalid[] = {"nm_edge", "nm_vertex", "flipped", "duplicate",
+                                          "degenerate", "crossing"};
+    for (size_t i = 0; i < sizeof invalid / sizeof *invalid; i++) {
+        snprintf(args, sizeof args, "%s/%s.off", d, invalid[i]);
+        CHECK_MSG(run_cli(args) == 4, "%s", invalid[i]);
+    }
+    snprintf(args, sizeof args, "%s/hole.off --input %s/sphere_cloud.off --ref %s/sphere_fine.off "
+             "--samples 2000 --tau-rel 0.02",
+             d, d, d);
+    CHECK(run_cli(args) == 0);
+    snprintf(args, sizeof args, "%s/no_such_mesh.off", d);
+    CHECK(run_cli(args) == 2);
+    snprintf(args, sizeof args, "%s/sphere.off --ref %s/no_such_ref.off", d, d);
+    CHECK(run_cli(args) == 2);
+    snprintf(args, sizeof args, "%s/sphere.off --samples zero", d);
+    CHECK(run_cli(args) == 1);
+    CHECK(run_cli("") == 1);
+}
+
 int main(void)
 {
     test_orient2d();
@@ -452,5 +520,7 @@ int main(void)
     test_crossing();
     test_bad_input();
     test_meshcheck_agreement();
+    test_threads();
+    test_cli();
     return TEST_SUMMARY();
 }
