@@ -9,10 +9,11 @@
  *    columns whose last three are all integers in 0-255 and not unit
  *    vectors (some longer than 1.5) are x y z r g b, the other common habit:
  *    no normal looks like that;
- *  - a first line of column names ("x,y,z,nx,ny,nz", also as a comment such
- *    as CloudCompare's "//X,Y,Z,R,G,B") maps the columns by name: x y z,
- *    nx ny nz (or normal_x ...), r g b (or red green blue); other columns
- *    are skipped;
+ *  - a line of column names before the first point ("x,y,z,nx,ny,nz")
+ *    maps the columns by name: x y z, nx ny nz (or normal_x ...), r g b (or
+ *    red green blue); other columns are skipped. A comment naming columns
+ *    (CloudCompare's "//X,Y,Z,R,G,B") counts too when the first point has
+ *    that many values;
  *  - Leica PTS: a line holding one integer (the point count of the scan that
  *    follows) and lines of "x y z intensity [r g b]"; a file may hold
  *    several such blocks. Intensity is dropped, colour kept.
