@@ -12,6 +12,8 @@ typedef struct command {
 
 static const command commands[] = {
     {"convert", cmd_convert, "convert between file formats"},
+    {"check", cmd_check, "check a mesh: manifold, orientation, intersections, distances"},
+    {"render", cmd_render, "render a mesh or point cloud to PNG"},
 };
 
 static void usage(FILE *out)
