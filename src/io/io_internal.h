@@ -57,9 +57,11 @@ tessel_status tsl_builder_finish_mesh(tsl_builder *b, tessel_mesh *mesh);
 void tsl_builder_free(tsl_builder *b);
 
 /* Chooses the offset for world coordinates with bounding box [lo, hi] per
- * axis: 0 when every |coordinate| <= 4096 (floats keep ~0.5 mm there),
- * floor(lo) otherwise. Deterministic so that writing offset + xyz as doubles
- * and reading back gives the same floats and offset. */
+ * axis: 0 when -4096 <= lo and hi < 4097 (floats keep ~0.5 mm there),
+ * floor(lo) - 1 otherwise (local coordinates >= 1). Together with the
+ * builder's rounding (never up across an integer) this is a fixed point:
+ * writing offset + xyz as doubles and reading back gives the same floats
+ * and offset (docs/formats.md). */
 double tsl_choose_offset(double lo, double hi);
 
 /* Per-format parsers. data/size is the whole file; name is for diagnostics.
