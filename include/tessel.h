@@ -526,8 +526,9 @@ TESSEL_API tessel_render_params tessel_render_params_default(void);
  * top to bottom, RGB8). A mesh with nothing to draw gives an image of the
  * background colour. Triangle indices must be < vertex_count
  * (TESSEL_ERR_INVALID_ARG otherwise). Memory beyond the image: a float
- * depth buffer and, when boundaries are drawn, 4 bytes per triangle corner.
- * Deterministic for any thread count. */
+ * depth buffer, 21 bytes per vertex and 20 per triangle (projected
+ * coordinates, row ranges, boundary edge search). Deterministic for any
+ * thread count. */
 TESSEL_API tessel_status tessel_render(const tessel_mesh *mesh,
                                        const tessel_render_params *params,
                                        uint8_t *rgb);

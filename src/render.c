@@ -412,6 +412,9 @@ static tessel_status render_view(const tessel_mesh *m, const tessel_render_param
         int w = prm->point_size ? (int)prm->point_size
                                 : m->triangle_count ? 3 : auto_splat(m->vertex_count, v);
         double zspan = hi[2] - lo[2], zc = tsl_dot(v->center, v->cam.f);
+        /* Vertices drawn over a surface need the allowance to show; points
+         * of a cloud hide each other by plain depth. */
+        double slack = m->triangle_count ? v->bias : 0.0;
         for (size_t i = 0; i < m->vertex_count; i++) {
             if (used && !used[i])
                 continue;
@@ -438,7 +441,7 @@ static tessel_status render_view(const tessel_mesh *m, const tessel_render_param
                     if (x < 0 || y < 0 || x >= (int)v->w || y >= (int)v->h)
                         continue;
                     float *zb = &v->depth[(size_t)y * v->w + (size_t)x];
-                    if (fz <= *zb + v->bias) {
+                    if (fz <= *zb + slack) {
                         if (fz < *zb)
                             *zb = fz;
                         put_pixel(v, x, y, col);
