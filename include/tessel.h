@@ -134,7 +134,8 @@ typedef struct tessel_cloud {
     double viewpoint[3];
     int has_viewpoint;
 
-    /* Points the reader dropped because a coordinate was NaN or infinite. */
+    /* Points the reader dropped because a coordinate was NaN, infinite or
+     * beyond 1e15 in magnitude. */
     size_t dropped_nonfinite;
 } tessel_cloud;
 
@@ -205,8 +206,9 @@ TESSEL_API tessel_write_params tessel_write_params_default(void);
 
 /* Parse a cloud from memory. `name` is used in diagnostics only (may be
  * NULL). For mesh formats the vertices are read and faces skipped. With
- * format AUTO, the content decides (PLY, OFF, PCD, LAS magic; else OBJ if it
- * has "v " lines; else XYZ/CSV). On error *cloud is zeroed. */
+ * format AUTO, the extension of `name` decides when it is known, else the
+ * content (PLY, OFF, PCD, LAS magic; else OBJ if it has "v " lines; else
+ * XYZ/CSV). On error *cloud is zeroed. */
 TESSEL_API tessel_status tessel_cloud_parse(tessel_cloud *cloud, const void *data,
                                             size_t size, const char *name,
                                             const tessel_read_params *params,
@@ -537,10 +539,236 @@ TESSEL_API tessel_status tessel_render(const tessel_mesh *mesh,
 /* Greedy projection reconstruction (src/greedy.c)                           */
 /* ------------------------------------------------------------------------ */
 
+/* Gopi & Krishnan 2002, "A fast and efficient projection-based approach for
+ * surface reconstruction" (GP3): an interpolating mesh grown breadth-first
+ * from seed points. Each reference point R gathers the points within
+ * mu * m of it (m: its shortest edge, or nearest neighbour), projects them
+ * on its tangent plane, orders them by angle, drops the ones hidden by the
+ * mesh boundary and joins consecutive ones (sections 3-4). Unlike the paper
+ * (and PCL's GreedyProjectionTriangulation), every triangle is accepted
+ * only if it keeps the mesh manifold, consistently oriented and free of
+ * self-intersections, decided with exact predicates. See docs/greedy.md. */
+typedef enum tessel_greedy_plane {
+    TESSEL_GREEDY_PLANE_PCA = 0, /* section 4.1: the average normal of the
+                                    triangles already at R; the PCA plane of
+                                    its neighbourhood for a seed */
+    TESSEL_GREEDY_PLANE_AXIS     /* section 6.1: the coordinate plane nearest
+                                    to that estimate */
+} tessel_greedy_plane;
+
+typedef struct tessel_greedy_params {
+    double mu;             /* radius of the sphere of influence as a multiple
+                              of m (section 4.1); the one essential
+                              parameter. Default 2.5, range [1.2, 10] */
+    double max_angle;      /* alpha, degrees: consecutive neighbours of R that
+                              are farther apart than this (seen from R) are
+                              not joined and R stays a boundary point
+                              (section 4.2). Default 120, range [60, 175] */
+    double min_angle;      /* beta, degrees: neighbours that would make a
+                              triangle with a smaller angle at R are dropped
+                              when that traps no other point (section 4.1,
+                              "angle criterion"); 0 disables it. Default 0,
+                              range [0, 45] */
+    tessel_greedy_plane plane; /* default TESSEL_GREEDY_PLANE_PCA */
+    double max_spacing;    /* m is capped at this multiple of the cloud's mean
+                              spacing: it bounds the sphere of influence (and
+                              every edge) in sparse regions; a point with no
+                              other point within mu * max_spacing mean
+                              spacings is isolated. Default 4, range
+                              [1, 1000] */
+    const uint32_t *existing; /* optional triangles that already exist
+                              (existing_count*3 indices into the cloud,
+                              counter-clockwise seen from outside, forming
+                              a manifold, consistently oriented mesh), e.g.
+                              a neighbouring tile's: the front starts from
+                              their boundary and they are not sent to the
+                              sink again. Default NULL */
+    size_t existing_count;
+} tessel_greedy_params;
+TESSEL_API tessel_greedy_params tessel_greedy_params_default(void);
+
+/* What a reconstruction did. Every input point is counted exactly once:
+ * points_in == points_used + left_duplicate + left_isolated +
+ * left_closed_in + left_untriangulated. */
+typedef struct tessel_recon_summary {
+    size_t points_in;
+    size_t points_used;          /* vertices of at least one triangle */
+    size_t left_duplicate;       /* same coordinates as a kept point */
+    size_t left_isolated;        /* no other point near enough (see
+                                    max_spacing) */
+    size_t left_closed_in;       /* inside the surface already built: every
+                                    neighbour was completed before it was
+                                    reached (typically noise off the
+                                    surface) */
+    size_t left_untriangulated;  /* had free neighbours, but every triangle
+                                    through it would have broken the mesh's
+                                    validity */
+    size_t triangles;            /* triangles sent to the sink (existing ones
+                                    not included) */
+    size_t components;           /* connected pieces of the output */
+    size_t boundary_edges;       /* edges with one triangle */
+    size_t seeds;                /* fronts started from a free point */
+    size_t rejected_intersecting;/* candidate triangles refused because they
+                                    would have intersected the mesh */
+    size_t peak_held_triangles;  /* most triangles held in memory at once */
+    double spacing;              /* mean spacing used, world units */
+    double seconds;              /* wall-clock time of the call */
+} tessel_recon_summary;
+
+/* Reconstructs cloud and sends the triangles to sink in batches as soon as
+ * no later triangle can touch them (streaming: memory holds the points and
+ * a band of triangles behind the front, not the mesh). Triangles index the
+ * cloud's points and are counter-clockwise seen from outside on closed
+ * surfaces (from the side of the input normals or viewpoint, when the cloud
+ * has them, on open ones). The output is edge- and vertex-manifold,
+ * consistently oriented, without self-intersecting, duplicate or degenerate
+ * triangles, and the same for the same input and params. params and summary
+ * may be NULL; the cloud must have fewer than 2^32 - 1 points and finite
+ * coordinates. Single-threaded. */
+TESSEL_API tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
+                                                   const tessel_greedy_params *params,
+                                                   const tessel_callbacks *callbacks,
+                                                   const tessel_triangle_sink *sink,
+                                                   tessel_recon_summary *summary);
+
+/* The same into a mesh: its vertices are the cloud points used by a
+ * triangle, in input order, with their normals and colours; the offset is
+ * the cloud's. On error *mesh is zeroed. */
+TESSEL_API tessel_status tessel_reconstruct_greedy_mesh(const tessel_cloud *cloud,
+                                                        const tessel_greedy_params *params,
+                                                        const tessel_callbacks *callbacks,
+                                                        tessel_mesh *mesh,
+                                                        tessel_recon_summary *summary);
+
 /* ------------------------------------------------------------------------ */
 /* Fixed-plane reconstruction for height fields, range scans and organized   */
 /* grids (src/fixed_plane.c)                                                 */
 /* ------------------------------------------------------------------------ */
+
+/* Gopi & Krishnan 2002, "A fast and efficient projection-based approach for
+ * surface reconstruction", section 5: when the data are a height field
+ * (terrain, aerial LIDAR) or come from a scanner with one centre of
+ * projection, the projection plane is fixed and the dexel array is
+ * two-dimensional. One representative per dexel (section 5.1), neighbours
+ * only from adjacent dexels, a sphere of influence slightly above the noise
+ * level and no visibility or angle tests. See docs/fixed_plane.md. */
+typedef enum tessel_fixed_plane_mode {
+    TESSEL_FIXED_PLANE_HEIGHT = 0, /* dexels on a plane (terrain, aerial LIDAR) */
+    TESSEL_FIXED_PLANE_RANGE,      /* (theta, phi) dexels around a centre of
+                                      projection (terrestrial scanners) */
+    TESSEL_FIXED_PLANE_GRID        /* the organized cloud's own grid (depth
+                                      cameras, PCD width x height) */
+} tessel_fixed_plane_mode;
+
+/* Edge test. Two representatives a and b of adjacent dexels (or grid
+ * cells) are joined only when
+ *     |a - b|^2 <= s^2 / cos^2(max_angle) + margin^2,
+ * where s is the length the edge would have on a surface facing the
+ * projection direction: in height mode the distance of a and b in the
+ * plane; in range and grid modes r * |unit(a - V) - unit(b - V)|, r the
+ * distance from the viewpoint V to the nearer of a and b (so |a - b| / r,
+ * the edge's length relative to its range, is compared with the angular
+ * step divided by cos(max_angle)). margin = noise_factor * noise: the
+ * sphere of influence reaches slightly beyond the noise (section 5.1).
+ * Depth discontinuities (steps, an object in front of a wall) fail the test
+ * and stay open. A triangle is made when its three edges pass and it is not
+ * flipped or degenerate seen along the projection direction. */
+typedef struct tessel_fixed_plane_params {
+    tessel_fixed_plane_mode mode; /* default TESSEL_FIXED_PLANE_HEIGHT */
+    int axis;                  /* height mode: -1 (default) projects onto the
+                                  cloud's plane of least variance (normal
+                                  signed so that its z is >= 0: "up" for
+                                  terrain); 0, 1, 2 onto the plane normal to
+                                  +x, +y, +z */
+    uint32_t columns, rows;    /* height and range modes: dexel array size;
+                                  both 0 (default) derives it from cell */
+    double cell;               /* height mode: dexel edge, world units; range
+                                  mode: dexel angular size, radians; 0
+                                  (default): chosen so that occupied dexels
+                                  hold points_per_dexel points on average.
+                                  Ignored when columns and rows are set */
+    double points_per_dexel;   /* target of the automatic cell; default 3
+                                  (>= 1; larger simplifies more) */
+    double viewpoint[3];       /* range and grid modes: centre of projection,
+                                  world coordinates, used when use_viewpoint
+                                  is 1 */
+    int use_viewpoint;         /* 0 (default): the cloud's viewpoint; grid
+                                  mode falls back to the world origin (the
+                                  sensor frame of depth cameras), range mode
+                                  fails with TESSEL_ERR_INVALID_ARG */
+    double max_angle;          /* degrees, (0, 90): steepest edge, measured
+                                  from the plane facing the projection
+                                  direction, that is still joined; default
+                                  80 */
+    double noise;              /* noise along the projection direction (height
+                                  or range), standard deviation, world units;
+                                  0 (default): estimated from the data (robust
+                                  residual of each representative against the
+                                  plane through three neighbours) */
+    double noise_factor;       /* margin = noise_factor * noise; default 6
+                                  (>= 0): the depth difference of two
+                                  neighbours has deviation 1.4 noise, so 6
+                                  keeps all but ~2e-5 of the true edges */
+    int threads;               /* 0 = OpenMP default (honours OMP_NUM_THREADS) */
+} tessel_fixed_plane_params;
+TESSEL_API tessel_fixed_plane_params tessel_fixed_plane_params_default(void);
+
+/* What a fixed-plane reconstruction did. */
+typedef struct tessel_fixed_plane_stats {
+    tessel_fixed_plane_mode mode;
+    size_t points_in;          /* cloud->count */
+    size_t representatives;    /* dexels (grid cells) holding a point */
+    size_t dexels_filled;      /* of which empty dexels that took a spare
+                                  point of a neighbouring dexel (height and
+                                  range: a one-dexel sampling gap is not a
+                                  hole) */
+    uint32_t columns, rows;    /* dexel array (grid) size */
+    int wrap_columns, wrap_rows; /* 1 when the last column (row) is joined to
+                                  the first: a full 360 degree scan */
+    double cell[2];            /* dexel size along columns and rows: world
+                                  units (height), radians (range); 0 (grid) */
+    double axis[3];            /* height: plane normal; range: the pole of the
+                                  (theta, phi) frame; grid: 0 */
+    double viewpoint[3];       /* range and grid: centre of projection used,
+                                  world coordinates */
+    double noise;              /* noise used, world units */
+    int noise_estimated;       /* 1 when noise was estimated from the data */
+    double margin;             /* noise_factor * noise, world units */
+    size_t cells;              /* 2x2 dexel blocks considered */
+    size_t cells_missing;      /* blocks with fewer than 3 representatives */
+    size_t cells_open;         /* blocks where the edge test rejected at least
+                                  one triangle: discontinuities */
+    size_t triangles_folded;   /* rejected as flipped or degenerate */
+    size_t triangles_nonmanifold; /* removed so that every vertex's triangles
+                                  form a single fan */
+    size_t triangles;          /* triangles emitted */
+    double seconds;            /* wall-clock time of the whole call */
+    double seconds_dexels;     /* of which bucketing and representatives */
+} tessel_fixed_plane_stats;
+
+/* Reconstructs a surface from a height field, a range scan or an organized
+ * grid (params->mode) and sends the triangles to sink in batches, in
+ * dexel-row order. Triangles index cloud's points (one representative per
+ * dexel; other points are unused) and are counter-clockwise seen from the
+ * +normal side of the plane (height: "up" for terrain) or from the
+ * viewpoint (range, grid). The output is edge- and vertex-manifold and
+ * consistently oriented. Grid mode needs an organized cloud (cloud->grid)
+ * and fails with TESSEL_ERR_INVALID_ARG, logging why, on an unorganized
+ * one; range mode needs a viewpoint. params and stats may be NULL; the
+ * cloud must have fewer than 2^32 points. */
+TESSEL_API tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
+                                                        const tessel_fixed_plane_params *params,
+                                                        const tessel_callbacks *callbacks,
+                                                        const tessel_triangle_sink *sink,
+                                                        tessel_fixed_plane_stats *stats);
+
+/* The same into a mesh: its vertices are the cloud points used by a
+ * triangle, in input order, with their normals and colours; the offset is
+ * the cloud's, so world coordinates are unchanged. On error *mesh is
+ * zeroed. */
+TESSEL_API tessel_status tessel_reconstruct_fixed_plane_mesh(
+    const tessel_cloud *cloud, const tessel_fixed_plane_params *params,
+    const tessel_callbacks *callbacks, tessel_mesh *mesh, tessel_fixed_plane_stats *stats);
 
 /* ------------------------------------------------------------------------ */
 /* Noisy clouds: robust smoothing, clustering, reduction (src/smooth.c,      */
@@ -738,6 +966,83 @@ TESSEL_API tessel_status tessel_simplify(const tessel_cloud *cloud, tessel_cloud
 /* Noisy clouds: advancing front and refinement (src/advancing_front.c,      */
 /* src/refine.c)                                                             */
 /* ------------------------------------------------------------------------ */
+
+/* Steps 4 and 5 of Mederos, Velho & de Figueiredo 2003 (sections 2.4, 2.5)
+ * and the whole pipeline. See docs/advancing_front.md. */
+
+/* Advancing-front triangulation (section 2.4, Algorithms 1 and 2). From a
+ * seed triangle, every border edge uv takes as third vertex the point q
+ * among the k nearest neighbours of u and v with the largest angle uqv
+ * among those that satisfy (i) the new triangle turns at most theta from
+ * the triangle across uv, theta widening by eps2 up to 90 + eps2 degrees
+ * until some point qualifies, (ii) the surface stays valid, (iii) both new
+ * edges are shorter than eps1 * min(d_u, d_v) (d_x: distance from x to its
+ * nearest neighbour), (iv) the angles at u and v are below phi. An edge
+ * with no such point stays a border edge. */
+typedef struct tessel_front_params {
+    uint32_t k;              /* neighbours of each end of an edge searched
+                                for its third vertex; default 16 (3..64) */
+    double theta_deg;        /* theta, degrees: initial half-width of the
+                                dihedral band [180 - theta, 180 + theta];
+                                default 30 (0..90) */
+    double theta_step_deg;   /* eps2, degrees: theta grows by this; default
+                                15 (> 0) */
+    double max_edge_ratio;   /* eps1: new edges shorter than this times the
+                                smaller nearest-neighbour distance of the
+                                edge's ends; default 3 (> 1) */
+    double max_angle_deg;    /* phi, degrees: the new triangle's angles at
+                                the edge's ends stay below this; default 140
+                                (60..180) */
+    double normal_angle_deg; /* a triangle's normal stays within this many
+                                degrees of the surface normal at each of its
+                                vertices (the points' normals when given,
+                                else the normal of the plane fitted to their
+                                k nearest neighbours), oriented as the
+                                surface took it: no fold-backs on noisy
+                                points; default 60 (0..180; 180 disables) */
+    uint32_t max_hole_edges; /* when the fronts stop, border loops of at
+                                most this many edges are closed by clipping
+                                ears that keep the surface valid (a real
+                                border, convex as seen from its surface,
+                                has no such ears); default 20 (0 disables) */
+    int orient;              /* 1 (default): every closed component faces
+                                outward (positive volume); open components
+                                agree with the points' normals when they have
+                                them. 0: as grown (still consistent within
+                                each component). */
+    int threads;             /* for the neighbour search; 0 = OpenMP default
+                                (honours OMP_NUM_THREADS). The front itself is
+                                sequential; the result does not depend on the
+                                thread count. */
+} tessel_front_params;
+TESSEL_API tessel_front_params tessel_front_params_default(void);
+
+typedef struct tessel_front_stats {
+    size_t triangles;        /* triangles in the mesh */
+    size_t seeds;            /* seed triangles (fronts started) */
+    size_t bridges;          /* joins and splits of border loops */
+    size_t hole_triangles;   /* triangles added by closing small holes */
+    size_t border_edges;     /* edges with one triangle in the result */
+    size_t unused_points;    /* points on no triangle (isolated points,
+                                exact duplicates, points no front reached) */
+    size_t flipped_components; /* components reversed by orient */
+} tessel_front_stats;
+
+/* Triangulates the points (normally the representatives of
+ * tessel_simplify). The mesh's vertices are the points, in order (vertex i
+ * is point i; normals, colours and offset copied), so points on no triangle
+ * are unreferenced vertices. The result is manifold (every edge on one or
+ * two triangles, every vertex on a single fan), consistently oriented and
+ * free of self-intersections (decided with exact predicates). Normals are
+ * not needed; when present they only choose the orientation of open
+ * components. params and stats may be NULL. Needs 3 points
+ * (TESSEL_ERR_TOO_FEW_POINTS); at most 2^32 - 2 (TESSEL_ERR_LIMIT). On error
+ * *mesh is zeroed. */
+TESSEL_API tessel_status tessel_advancing_front(const tessel_cloud *points,
+                                                const tessel_front_params *params,
+                                                const tessel_callbacks *callbacks,
+                                                tessel_mesh *mesh,
+                                                tessel_front_stats *stats);
 
 #ifdef __cplusplus
 }

@@ -285,6 +285,18 @@ static void test_builder(void)
     tessel_mesh_free(&m);
     tsl_builder_free(&b);
 
+    /* Absurd magnitudes (a hostile LAS scale) are dropped like NaN: kept,
+     * world - offset would overflow the float storage. */
+    tsl_builder_init(&b, NULL);
+    const double huge[3][3] = {{1.7e308, 0, 0}, {-1.7e308, 0, 0}, {1, 2, 3}};
+    for (int i = 0; i < 3; i++)
+        CHECK(tsl_builder_point(&b, huge[i], NULL, NULL) == TESSEL_OK);
+    tessel_cloud hc;
+    CHECK(tsl_builder_finish_cloud(&b, &hc) == TESSEL_OK);
+    CHECK(hc.count == 1 && hc.dropped_nonfinite == 2);
+    CHECK(hc.count == 1 && hc.xyz[0] == 1.0f && hc.xyz[2] == 3.0f);
+    tessel_cloud_free(&hc);
+
     /* Organized grid: cells map to kept points or TESSEL_NONE. */
     tsl_builder_init(&b, NULL);
     for (int cell = 0; cell < 6; cell++) {

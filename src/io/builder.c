@@ -216,9 +216,16 @@ static float local_coord(double world, double offset)
     return f;
 }
 
+/* Coordinates beyond this magnitude are treated like NaN: no real survey is
+ * that large (the Earth's radius is 6.4e6 m), and keeping them would make
+ * world - offset overflow the float storage (a hostile LAS scale can produce
+ * 1e300). */
+#define TSL_MAX_COORD 1e15
+
 static bool point_finite(const double *p)
 {
-    return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
+    return fabs(p[0]) <= TSL_MAX_COORD && fabs(p[1]) <= TSL_MAX_COORD &&
+           fabs(p[2]) <= TSL_MAX_COORD;
 }
 
 /* Drops non-finite points (compacting all arrays), fills remap (old index
