@@ -167,8 +167,8 @@ static void fill_band(const tessel_mesh *m, const tessel_render_params *prm, vie
         float bx = p->x[tri[1]], by = p->y[tri[1]], bz = p->z[tri[1]];
         float cx = p->x[tri[2]], cy = p->y[tri[2]], cz = p->z[tri[2]];
         double area = (double)(bx - ax) * (cy - ay) - (double)(by - ay) * (cx - ax);
-        if (area == 0.0)
-            continue;
+        if (!(area != 0.0 && isfinite(area) && isfinite(az) && isfinite(bz) && isfinite(cz)))
+            continue; /* edge-on, or a vertex that is not finite */
         /* Colour: facing from the 3D normal, brightness from the headlight. */
         double a3[3], b3[3], c3[3], e1[3], e2[3], n[3];
         tsl_load(m->xyz + 3 * (size_t)tri[0], a3);
@@ -219,6 +219,8 @@ static void draw_line(viewport *v, const projected *p, uint32_t a, uint32_t b, i
 {
     double ax = p->x[a], ay = p->y[a], az = p->z[a];
     double dx = p->x[b] - ax, dy = p->y[b] - ay, dz = p->z[b] - az;
+    if (!isfinite(ax) || !isfinite(ay) || !isfinite(dx) || !isfinite(dy) || !isfinite(dz))
+        return;
     double len = fmax(fabs(dx), fabs(dy));
     if (!(len < 4.0 * RENDER_MAX_SIDE))
         len = 4.0 * RENDER_MAX_SIDE; /* far off-screen ends: bounded work */

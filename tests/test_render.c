@@ -202,6 +202,13 @@ static void test_empty_and_cloud(void)
     m.triangles[5] = (uint32_t)m.vertex_count;
     CHECK(tessel_render(&m, &p, rgb) == TESSEL_ERR_INVALID_ARG);
     CHECK(tessel_render(NULL, &p, rgb) == TESSEL_ERR_INVALID_ARG);
+    /* Non-finite vertices are skipped, not drawn across the image. */
+    m.triangles[5] = 0;
+    m.xyz[3 * 5] = NAN;
+    m.xyz[3 * 9 + 1] = INFINITY;
+    p.edges = 1;
+    p.points = 1;
+    CHECK(tessel_render(&m, &p, rgb) == TESSEL_OK);
     tessel_mesh_free(&m);
     CHECK(tessel_view_from_name("iso") == TESSEL_VIEW_ISO);
     CHECK(tessel_view_from_name("all") == TESSEL_VIEW_ALL);
