@@ -1004,7 +1004,8 @@ typedef struct tessel_front_params {
                                 most this many edges are closed by clipping
                                 ears that keep the surface valid (a real
                                 border, convex as seen from its surface,
-                                has no such ears); default 20 (0 disables) */
+                                has no such ears); default 20 (0..64; 0
+                                disables) */
     int orient;              /* 1 (default): every closed component faces
                                 outward (positive volume); open components
                                 agree with the points' normals when they have

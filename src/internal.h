@@ -114,4 +114,43 @@ double tsl_orient2d(const double a[2], const double b[2], const double c[2]);
 double tsl_orient3d(const double a[3], const double b[3], const double c[3],
                     const double d[3]);
 
+/* ---- triangle hash grid and exact triangle tests (src/advancing_front.c),
+ * shared by the advancing front and the refinement (src/refine.c) ----
+ * A uniform grid hashed on cell coordinates; a triangle is listed in every
+ * cell its bounding box meets. Insert-only: a caller that replaces
+ * triangles inserts the new ones and skips stale ids it gets back, so a
+ * query returns a superset of the triangles whose boxes meet the box. */
+typedef struct tsl_trigrid {
+    double origin[3], inv_cell;
+    uint64_t *keys;          /* slots: cell key + 1 (0 = empty) */
+    uint32_t *heads;         /* slots: first entry of the cell */
+    size_t slots, used;
+    uint32_t *ent_tri, *ent_next;
+    size_t entries, ent_cap;
+    uint32_t *stamp;         /* per triangle id: last query that found it */
+    size_t stamp_cap;
+    uint32_t stamp_now;
+    uint32_t *found;         /* result of the last query */
+    size_t found_count, found_cap;
+} tsl_trigrid;
+
+/* cell: edge length of a cell (> 0); [lo, hi]: the box that will hold the
+ * triangles (used to keep cell coordinates in range). */
+tessel_status tsl_trigrid_init(tsl_trigrid *g, const double lo[3], const double hi[3],
+                               double cell);
+tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3],
+                                 const double hi[3]);
+/* Triangle ids whose cells meet the box [lo, hi], each once, into
+ * g->found[0 .. g->found_count). Not thread-safe (scratch in g). */
+tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3]);
+void tsl_trigrid_free(tsl_trigrid *g);
+
+/* Exactly collinear vertices (zero area). */
+bool tsl_triangle_degenerate(const double *p[3]);
+/* Two non-degenerate triangles with vertex ids ia, ib and coordinates pa,
+ * pb intersect in more than their shared vertex or edge (exact, closed
+ * triangles). Triangles with three shared ids count as intersecting. */
+bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const uint32_t ib[3],
+                             const double *pb[3]);
+
 #endif /* TESSEL_INTERNAL_H */

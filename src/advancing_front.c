@@ -1,0 +1,1845 @@
+/* Advancing-front triangulation of a point set: step 4 of Mederos, Velho &
+ * de Figueiredo 2003, "Smooth surface reconstruction from noisy clouds",
+ * section 2.4 (Algorithms 1 and 2).
+ *
+ * A surface grows from a seed triangle (a point, its nearest neighbour and
+ * the neighbour that maximises the angle at it). Border half-edges form
+ * loops, each with the surface on its left; a FIFO holds the edges still to
+ * be processed (the paper's list L). For a border edge uv with triangle usv,
+ * GET_POINT takes the candidates t among the k nearest neighbours of u and v
+ * that satisfy (i) the triangle vut turns at most theta from usv, theta
+ * widening by eps2 up to pi/2 + eps2, (iii) max(|ut|, |vt|) < eps1 d_min,
+ * (iv) the angles at u and v stay below phi, and picks the one with the
+ * largest angle utv that passes (ii), validity.
+ *
+ * Validity is where this implementation is stricter than the paper, so that
+ * the output is a valid surface whatever the input:
+ *  - Combinatorial: every edge keeps at most two triangles, used in opposite
+ *    directions, and every vertex keeps a single fan (a disc or half-disc)
+ *    after every step. A triangle to a point on a non-adjacent part of the
+ *    border (the paper's join of two border components or split of one)
+ *    would give that point a second fan, so it is added together with a
+ *    second triangle that fills the wedge between the new triangle and one
+ *    of the point's border edges (a "bridge"). Ears (the point is the next
+ *    or previous vertex along the loop) and hole closing (a loop of three)
+ *    close border edges.
+ *  - Geometric, the paper's projection test: projected onto the plane
+ *    bisecting their normals, a new triangle and an existing one that share
+ *    a vertex may not overlap around it, and two that share nothing may not
+ *    overlap when they are close in height; triangles sharing an edge may not
+ *    fold beyond pi/2 + eps2.
+ *  - Exact: no new triangle may intersect an existing triangle beyond a
+ *    shared vertex or edge, decided with Shewchuk's orientation predicates
+ *    against every triangle whose bounding box meets it (a hash grid). So
+ *    the output never self-intersects.
+ * When the front stops, the next seed is taken among the unused points, so
+ * every connected component gets its own surface. At the end, every closed
+ * component is turned outward (positive signed volume), and open ones agree
+ * with the points' normals when there are any. */
+#include "internal.h"
+
+#include <float.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NONE TESSEL_NONE
+#define MAX_K 64
+#define MAX_HOLE_EDGES 64
+/* d_x, the local spacing of (iii): mean distance to this many nearest
+ * distinct neighbours. */
+#define SPACING_NEIGHBOURS 6
+
+enum { EDGE_ACTIVE = 0, EDGE_DEAD = 1, EDGE_CLOSED = 2 };
+/* A dead edge is reconsidered when its neighbourhood changes, this often. */
+#define MAX_RETRIES 3
+/* Triangles that only close border edges (ears, holes) cannot make the
+ * front grow over itself, so they get looser limits: the sharpest fold
+ * along a shared edge, and the largest angle to the vertices' normals. */
+#define CLOSING_FOLD_DEG 150.0
+#define CLOSING_NORMAL_DEG 80.0
+/* Holes of at most this many edges are closed by any valid ears (the
+ * surface stays manifold and free of self-intersections; folds up to
+ * LAST_FOLD_DEG). */
+#define TINY_HOLE_EDGES 6
+#define LAST_FOLD_DEG 175.0
+
+/* How a candidate triangle (b, a, t) on border edge a->b is attached. */
+enum {
+    PLAN_FREE,     /* t is a new vertex */
+    PLAN_EAR_A,    /* t precedes a on the loop: closes t->a */
+    PLAN_EAR_B,    /* t follows b on the loop: closes b->t */
+    PLAN_HOLE,     /* both: the loop t, a, b is filled */
+    PLAN_BRIDGE_R, /* t elsewhere on a border; second triangle (r, t, a) */
+    PLAN_BRIDGE_P  /* same; second triangle (b, t, p) */
+};
+
+typedef struct af_edge {
+    uint32_t from, to;   /* border half-edge; its triangle lies on the left */
+    uint32_t prev, next; /* neighbours along the border loop */
+    uint32_t tri;        /* the triangle it belongs to */
+    uint8_t state;
+    uint8_t retries;
+} af_edge;
+
+typedef struct af_cand {
+    uint32_t t;
+    int level;     /* smallest widening of theta that admits it */
+    double cos_t;  /* cosine of the angle at t (smaller = larger angle) */
+} af_cand;
+
+/* Per triangle: unit normal and bounding box. */
+typedef struct af_tinfo {
+    float n[3];
+    float lo[3], hi[3];
+} af_tinfo;
+
+typedef struct af {
+    /* input */
+    const float *xyz;
+    const float *pnormals; /* may be NULL */
+    size_t n;
+    uint32_t k;
+    uint32_t *knn;   /* n*k neighbours, self excluded, nearest first */
+    float *nnd;      /* distance to the nearest point at a distance > 0 */
+    uint8_t *dup;    /* exact duplicate of a point with a smaller index */
+    float *ln;       /* n*3 unit surface normal lines (sign not meaningful) */
+    int8_t *vsign;   /* orientation of ln taken by the surface, 0 if unused */
+    /* derived parameters */
+    double cos_phi, theta0, theta_step, theta_max, cos_theta_max, eps1, cos_normal;
+    double cos_closing_fold, cos_closing_normal, cos_last_fold;
+    size_t max_hole_edges;
+    /* mesh */
+    uint32_t *tri;   /* 3 per triangle */
+    af_tinfo *ti;    /* per triangle: normal and box */
+    uint32_t *cnext; /* per corner: next corner at the same vertex */
+    size_t nt, cap_t;
+    uint32_t *vhead; /* per point: first corner, NONE if unused */
+    uint32_t *vin, *vout; /* per point: border edge ending / starting there */
+    af_edge *e;
+    size_t ne, cap_e;
+    uint32_t *queue; /* ring buffer of edge ids */
+    size_t q_head, q_count, q_cap;
+    tsl_trigrid grid;
+    double max_edge; /* longest edge so far, for seed orientation searches */
+    size_t used;     /* points on some triangle */
+    tessel_front_stats stats;
+} af;
+
+tessel_front_params tessel_front_params_default(void)
+{
+    tessel_front_params p;
+    memset(&p, 0, sizeof p);
+    p.k = 16;
+    p.theta_deg = 30.0;
+    p.theta_step_deg = 15.0;
+    p.max_edge_ratio = 3.0;
+    p.max_angle_deg = 140.0;
+    p.normal_angle_deg = 60.0;
+    p.max_hole_edges = 20;
+    p.orient = 1;
+    p.threads = 0;
+    return p;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Triangle hash grid                                                        */
+/* ------------------------------------------------------------------------ */
+
+#define GRID_AXIS_CELLS 2097151 /* 2^21 - 1: three axes pack into 63 bits */
+
+tessel_status tsl_trigrid_init(tsl_trigrid *g, const double lo[3], const double hi[3],
+                               double cell)
+{
+    memset(g, 0, sizeof *g);
+    double extent = 0.0;
+    for (int i = 0; i < 3; i++) {
+        g->origin[i] = lo[i];
+        if (hi[i] - lo[i] > extent)
+            extent = hi[i] - lo[i];
+    }
+    if (!(cell > 0.0) || !isfinite(cell))
+        cell = 1.0;
+    /* Keep every coordinate within 21 bits however sparse the points. */
+    if (extent / cell > (double)(GRID_AXIS_CELLS - 2))
+        cell = extent / (double)(GRID_AXIS_CELLS - 2);
+    g->inv_cell = 1.0 / cell;
+    g->slots = 1024;
+    g->keys = tsl_calloc_array(g->slots, sizeof *g->keys);
+    g->heads = tsl_alloc_array(g->slots, sizeof *g->heads);
+    if (!g->keys || !g->heads) {
+        tsl_trigrid_free(g);
+        return TESSEL_ERR_NOMEM;
+    }
+    return TESSEL_OK;
+}
+
+void tsl_trigrid_free(tsl_trigrid *g)
+{
+    if (!g)
+        return;
+    free(g->keys);
+    free(g->heads);
+    free(g->ent_tri);
+    free(g->ent_next);
+    free(g->stamp);
+    free(g->found);
+    memset(g, 0, sizeof *g);
+}
+
+static inline int32_t grid_coord(const tsl_trigrid *g, double x, int axis)
+{
+    double c = floor((x - g->origin[axis]) * g->inv_cell);
+    if (!(c >= 0.0))
+        return 0;
+    if (c > (double)GRID_AXIS_CELLS)
+        return GRID_AXIS_CELLS;
+    return (int32_t)c;
+}
+
+static inline uint64_t grid_key(int32_t x, int32_t y, int32_t z)
+{
+    return ((uint64_t)x << 42 | (uint64_t)y << 21 | (uint64_t)z) + 1;
+}
+
+static inline size_t grid_slot(const tsl_trigrid *g, uint64_t key)
+{
+    uint64_t h = key * 0x9E3779B97F4A7C15ULL;
+    return (size_t)(h ^ (h >> 29)) & (g->slots - 1);
+}
+
+static tessel_status grid_rehash(tsl_trigrid *g)
+{
+    size_t slots = g->slots * 2;
+    uint64_t *keys = tsl_calloc_array(slots, sizeof *keys);
+    uint32_t *heads = tsl_alloc_array(slots, sizeof *heads);
+    if (!keys || !heads) {
+        free(keys);
+        free(heads);
+        return TESSEL_ERR_NOMEM;
+    }
+    uint64_t *old_keys = g->keys;
+    uint32_t *old_heads = g->heads;
+    size_t old_slots = g->slots;
+    g->keys = keys;
+    g->heads = heads;
+    g->slots = slots;
+    for (size_t i = 0; i < old_slots; i++) {
+        if (!old_keys[i])
+            continue;
+        size_t s = grid_slot(g, old_keys[i]);
+        while (keys[s])
+            s = (s + 1) & (slots - 1);
+        keys[s] = old_keys[i];
+        heads[s] = old_heads[i];
+    }
+    free(old_keys);
+    free(old_heads);
+    return TESSEL_OK;
+}
+
+tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3],
+                                 const double hi[3])
+{
+    int32_t c0[3], c1[3];
+    for (int i = 0; i < 3; i++) {
+        c0[i] = grid_coord(g, lo[i], i);
+        c1[i] = grid_coord(g, hi[i], i);
+    }
+    if ((size_t)tri >= g->stamp_cap) {
+        size_t old = g->stamp_cap;
+        if (tsl_grow((void **)&g->stamp, &g->stamp_cap, (size_t)tri + 1, sizeof *g->stamp))
+            return TESSEL_ERR_NOMEM;
+        memset(g->stamp + old, 0, (g->stamp_cap - old) * sizeof *g->stamp);
+    }
+    for (int32_t x = c0[0]; x <= c1[0]; x++)
+        for (int32_t y = c0[1]; y <= c1[1]; y++)
+            for (int32_t z = c0[2]; z <= c1[2]; z++) {
+                if ((g->used + 1) * 2 > g->slots && grid_rehash(g))
+                    return TESSEL_ERR_NOMEM;
+                if (g->entries + 1 > g->ent_cap) {
+                    size_t cap = g->ent_cap;
+                    if (tsl_grow((void **)&g->ent_tri, &cap, g->entries + 1,
+                                 sizeof *g->ent_tri))
+                        return TESSEL_ERR_NOMEM;
+                    size_t cap2 = g->ent_cap;
+                    if (tsl_grow((void **)&g->ent_next, &cap2, cap, sizeof *g->ent_next))
+                        return TESSEL_ERR_NOMEM;
+                    g->ent_cap = cap < cap2 ? cap : cap2;
+                }
+                uint64_t key = grid_key(x, y, z);
+                size_t s = grid_slot(g, key);
+                while (g->keys[s] && g->keys[s] != key)
+                    s = (s + 1) & (g->slots - 1);
+                uint32_t ent = (uint32_t)g->entries++;
+                g->ent_tri[ent] = tri;
+                if (!g->keys[s]) {
+                    g->keys[s] = key;
+                    g->used++;
+                    g->ent_next[ent] = NONE;
+                } else {
+                    g->ent_next[ent] = g->heads[s];
+                }
+                g->heads[s] = ent;
+            }
+    return TESSEL_OK;
+}
+
+tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3])
+{
+    int32_t c0[3], c1[3];
+    for (int i = 0; i < 3; i++) {
+        c0[i] = grid_coord(g, lo[i], i);
+        c1[i] = grid_coord(g, hi[i], i);
+    }
+    g->found_count = 0;
+    if (++g->stamp_now == 0) {
+        memset(g->stamp, 0, g->stamp_cap * sizeof *g->stamp);
+        g->stamp_now = 1;
+    }
+    for (int32_t x = c0[0]; x <= c1[0]; x++)
+        for (int32_t y = c0[1]; y <= c1[1]; y++)
+            for (int32_t z = c0[2]; z <= c1[2]; z++) {
+                uint64_t key = grid_key(x, y, z);
+                size_t s = grid_slot(g, key);
+                while (g->keys[s] && g->keys[s] != key)
+                    s = (s + 1) & (g->slots - 1);
+                if (!g->keys[s])
+                    continue;
+                for (uint32_t ent = g->heads[s]; ent != NONE; ent = g->ent_next[ent]) {
+                    uint32_t t = g->ent_tri[ent];
+                    if (g->stamp[t] == g->stamp_now)
+                        continue;
+                    g->stamp[t] = g->stamp_now;
+                    if (g->found_count + 1 > g->found_cap &&
+                        tsl_grow((void **)&g->found, &g->found_cap, g->found_count + 1,
+                                 sizeof *g->found))
+                        return TESSEL_ERR_NOMEM;
+                    g->found[g->found_count++] = t;
+                }
+            }
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Exact triangle tests (orientation predicates, src/predicates.c)           */
+/* ------------------------------------------------------------------------ */
+
+static inline int sgn(double x) { return (x > 0.0) - (x < 0.0); }
+/* Plain minimum / maximum of finite numbers (fmin/fmax handle NaN and are
+ * function calls). */
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
+/* Coordinate axis to drop so that the non-degenerate triangle abc projects
+ * to a non-degenerate triangle; its projected orientation sign in *orient
+ * (0 when abc is collinear). */
+static int drop_axis(const double a[3], const double b[3], const double c[3], int *orient)
+{
+    double u[3], v[3], n[3];
+    tsl_sub(b, a, u);
+    tsl_sub(c, a, v);
+    tsl_cross(u, v, n);
+    int first = 0;
+    if (fabs(n[1]) > fabs(n[first]))
+        first = 1;
+    if (fabs(n[2]) > fabs(n[first]))
+        first = 2;
+    for (int t = 0; t < 3; t++) {
+        int drop = (first + t) % 3;
+        int i = (drop + 1) % 3, j = (drop + 2) % 3;
+        double pa[2] = {a[i], a[j]}, pb[2] = {b[i], b[j]}, pc[2] = {c[i], c[j]};
+        int s = sgn(tsl_orient2d(pa, pb, pc));
+        if (s != 0) {
+            *orient = s;
+            return drop;
+        }
+    }
+    *orient = 0;
+    return 0;
+}
+
+bool tsl_triangle_degenerate(const double *p[3])
+{
+    int o;
+    drop_axis(p[0], p[1], p[2], &o);
+    return o == 0;
+}
+
+static inline void drop2(const double p[3], int drop, double out[2])
+{
+    out[0] = p[(drop + 1) % 3];
+    out[1] = p[(drop + 2) % 3];
+}
+
+/* r on the closed segment pq, given p, q, r collinear. */
+static bool on_segment2(const double p[2], const double q[2], const double r[2])
+{
+    return dmin(p[0], q[0]) <= r[0] && r[0] <= dmax(p[0], q[0]) && dmin(p[1], q[1]) <= r[1] &&
+           r[1] <= dmax(p[1], q[1]);
+}
+
+static bool segments_meet2(const double p[2], const double q[2], const double a[2],
+                           const double b[2])
+{
+    int d1 = sgn(tsl_orient2d(p, q, a)), d2 = sgn(tsl_orient2d(p, q, b));
+    int d3 = sgn(tsl_orient2d(a, b, p)), d4 = sgn(tsl_orient2d(a, b, q));
+    if (d1 * d2 < 0 && d3 * d4 < 0)
+        return true;
+    return (d1 == 0 && on_segment2(p, q, a)) || (d2 == 0 && on_segment2(p, q, b)) ||
+           (d3 == 0 && on_segment2(a, b, p)) || (d4 == 0 && on_segment2(a, b, q));
+}
+
+static bool in_triangle2(const double p[2], const double a[2], const double b[2],
+                         const double c[2], int o)
+{
+    return sgn(tsl_orient2d(a, b, p)) * o >= 0 && sgn(tsl_orient2d(b, c, p)) * o >= 0 &&
+           sgn(tsl_orient2d(c, a, p)) * o >= 0;
+}
+
+/* Closed segment pq meets closed non-degenerate triangle abc. */
+static bool segment_triangle(const double p[3], const double q[3], const double a[3],
+                             const double b[3], const double c[3])
+{
+    int sp = sgn(tsl_orient3d(a, b, c, p)), sq = sgn(tsl_orient3d(a, b, c, q));
+    if (sp * sq > 0)
+        return false;
+    if (sp == 0 && sq == 0) {
+        int o;
+        int drop = drop_axis(a, b, c, &o);
+        double p2[2], q2[2], a2[2], b2[2], c2[2];
+        drop2(p, drop, p2);
+        drop2(q, drop, q2);
+        drop2(a, drop, a2);
+        drop2(b, drop, b2);
+        drop2(c, drop, c2);
+        return in_triangle2(p2, a2, b2, c2, o) || in_triangle2(q2, a2, b2, c2, o) ||
+               segments_meet2(p2, q2, a2, b2) || segments_meet2(p2, q2, b2, c2) ||
+               segments_meet2(p2, q2, c2, a2);
+    }
+    /* The segment reaches the plane once; the line through it hits the
+     * closed triangle iff it passes its three edges on the same side. */
+    int s1 = sgn(tsl_orient3d(p, q, a, b));
+    int s2 = sgn(tsl_orient3d(p, q, b, c));
+    int s3 = sgn(tsl_orient3d(p, q, c, a));
+    bool pos = s1 > 0 || s2 > 0 || s3 > 0;
+    bool neg = s1 < 0 || s2 < 0 || s3 < 0;
+    return !(pos && neg);
+}
+
+bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const uint32_t ib[3],
+                             const double *pb[3])
+{
+    int shared = 0, sa[3], sb[3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (ia[i] == ib[j]) {
+                sa[shared] = i;
+                sb[shared] = j;
+                shared++;
+            }
+    if (shared == 3)
+        return true;
+    if (shared == 2) {
+        /* Common edge pq: they overlap iff coplanar with both apexes on the
+         * same side of pq. */
+        const double *p = pa[sa[0]], *q = pa[sa[1]];
+        const double *ra = pa[3 - sa[0] - sa[1]], *rb = pb[3 - sb[0] - sb[1]];
+        if (tsl_orient3d(p, q, ra, rb) != 0.0)
+            return false;
+        int o;
+        int drop = drop_axis(p, q, ra, &o);
+        double p2[2], q2[2], rb2[2];
+        drop2(p, drop, p2);
+        drop2(q, drop, q2);
+        drop2(rb, drop, rb2);
+        return sgn(tsl_orient2d(p2, q2, rb2)) == o;
+    }
+    if (shared == 1) {
+        /* Common vertex: they meet elsewhere iff the edge opposite it in one
+         * meets the other. */
+        int i = sa[0], j = sb[0];
+        return segment_triangle(pb[(j + 1) % 3], pb[(j + 2) % 3], pa[0], pa[1], pa[2]) ||
+               segment_triangle(pa[(i + 1) % 3], pa[(i + 2) % 3], pb[0], pb[1], pb[2]);
+    }
+    /* Disjoint ids: planes first, then the six edge-triangle tests (closed
+     * triangles that meet always have an edge of one meeting the other). */
+    int s0 = sgn(tsl_orient3d(pa[0], pa[1], pa[2], pb[0]));
+    int s1 = sgn(tsl_orient3d(pa[0], pa[1], pa[2], pb[1]));
+    int s2 = sgn(tsl_orient3d(pa[0], pa[1], pa[2], pb[2]));
+    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+        return false;
+    s0 = sgn(tsl_orient3d(pb[0], pb[1], pb[2], pa[0]));
+    s1 = sgn(tsl_orient3d(pb[0], pb[1], pb[2], pa[1]));
+    s2 = sgn(tsl_orient3d(pb[0], pb[1], pb[2], pa[2]));
+    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+        return false;
+    for (int t = 0; t < 3; t++) {
+        if (segment_triangle(pa[t], pa[(t + 1) % 3], pb[0], pb[1], pb[2]))
+            return true;
+        if (segment_triangle(pb[t], pb[(t + 1) % 3], pa[0], pa[1], pa[2]))
+            return true;
+    }
+    return false;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Mesh bookkeeping                                                          */
+/* ------------------------------------------------------------------------ */
+
+static inline void point(const af *s, uint32_t i, double out[3])
+{
+    tsl_load(s->xyz + 3 * (size_t)i, out);
+}
+
+static inline bool is_free(const af *s, uint32_t v) { return s->vhead[v] == NONE; }
+static inline bool is_interior(const af *s, uint32_t v)
+{
+    return s->vhead[v] != NONE && s->vout[v] == NONE;
+}
+
+/* Unit normal of triangle (x, y, z) into n; returns twice its area. */
+static double tri_normal(const double x[3], const double y[3], const double z[3], double n[3])
+{
+    double u[3], v[3];
+    tsl_sub(y, x, u);
+    tsl_sub(z, x, v);
+    tsl_cross(u, v, n);
+    double len = tsl_norm(n);
+    if (len > 0.0) {
+        n[0] /= len;
+        n[1] /= len;
+        n[2] /= len;
+    }
+    return len;
+}
+
+/* 1 when the undirected edge {x, y} is on some triangle. */
+static bool edge_exists(const af *s, uint32_t x, uint32_t y)
+{
+    for (uint32_t c = s->vhead[x]; c != NONE; c = s->cnext[c]) {
+        const uint32_t *t = s->tri + 3 * (size_t)(c / 3);
+        if (t[0] == y || t[1] == y || t[2] == y)
+            return true;
+    }
+    return false;
+}
+
+static void tri_box(const double *p[3], double lo[3], double hi[3])
+{
+    for (int i = 0; i < 3; i++) {
+        lo[i] = dmin(p[0][i], dmin(p[1][i], p[2][i]));
+        hi[i] = dmax(p[0][i], dmax(p[1][i], p[2][i]));
+    }
+}
+
+static tessel_status add_triangle(af *s, uint32_t x, uint32_t y, uint32_t z, uint32_t *id)
+{
+    if (s->nt + 1 > s->cap_t) {
+        size_t cap = s->cap_t * 2, c1 = 3 * s->cap_t, c2 = s->cap_t, c3 = 3 * s->cap_t;
+        if (tsl_grow((void **)&s->tri, &c1, 3 * cap, sizeof *s->tri) ||
+            tsl_grow((void **)&s->ti, &c2, cap, sizeof *s->ti) ||
+            tsl_grow((void **)&s->cnext, &c3, 3 * cap, sizeof *s->cnext))
+            return TESSEL_ERR_NOMEM;
+        s->cap_t = cap;
+    }
+    uint32_t t = (uint32_t)s->nt;
+    uint32_t v[3] = {x, y, z};
+    double p[3][3], n[3];
+    for (int i = 0; i < 3; i++) {
+        point(s, v[i], p[i]);
+        s->tri[3 * (size_t)t + i] = v[i];
+        uint32_t c = 3 * t + (uint32_t)i;
+        s->cnext[c] = s->vhead[v[i]];
+        s->vhead[v[i]] = c;
+    }
+    tri_normal(p[0], p[1], p[2], n);
+    for (int i = 0; i < 3; i++)
+        if (!s->vsign[v[i]]) {
+            const float *l = s->ln + 3 * (size_t)v[i];
+            s->vsign[v[i]] = n[0] * l[0] + n[1] * l[1] + n[2] * l[2] < 0.0 ? -1 : 1;
+        }
+    af_tinfo *info = &s->ti[t];
+    for (int i = 0; i < 3; i++) {
+        double d[3];
+        tsl_sub(p[(i + 1) % 3], p[i], d);
+        s->max_edge = dmax(s->max_edge, tsl_norm(d));
+    }
+    const double *pp[3] = {p[0], p[1], p[2]};
+    double lo[3], hi[3];
+    tri_box(pp, lo, hi);
+    for (int i = 0; i < 3; i++) {
+        info->n[i] = (float)n[i];
+        info->lo[i] = (float)lo[i]; /* exact: the corners are floats */
+        info->hi[i] = (float)hi[i];
+    }
+    s->nt++;
+    *id = t;
+    return tsl_trigrid_insert(&s->grid, t, lo, hi);
+}
+
+static tessel_status push_edge(af *s, uint32_t e)
+{
+    if (s->q_count == s->q_cap) {
+        size_t cap = s->q_cap ? s->q_cap * 2 : 1024;
+        uint32_t *q = tsl_alloc_array(cap, sizeof *q);
+        if (!q)
+            return TESSEL_ERR_NOMEM;
+        for (size_t i = 0; i < s->q_count; i++)
+            q[i] = s->queue[(s->q_head + i) & (s->q_cap - 1)];
+        free(s->queue);
+        s->queue = q;
+        s->q_head = 0;
+        s->q_cap = cap;
+    }
+    s->queue[(s->q_head + s->q_count) & (s->q_cap - 1)] = e;
+    s->q_count++;
+    return TESSEL_OK;
+}
+
+static tessel_status new_edge(af *s, uint32_t from, uint32_t to, uint32_t tri, uint32_t *id)
+{
+    if (s->ne + 1 > s->cap_e &&
+        tsl_grow((void **)&s->e, &s->cap_e, s->ne + 1, sizeof *s->e))
+        return TESSEL_ERR_NOMEM;
+    uint32_t id_ = (uint32_t)s->ne++;
+    af_edge *e = &s->e[id_];
+    e->from = from;
+    e->to = to;
+    e->prev = e->next = NONE;
+    e->tri = tri;
+    e->state = EDGE_ACTIVE;
+    e->retries = 0;
+    *id = id_;
+    return push_edge(s, id_);
+}
+
+static inline void link_edges(af *s, uint32_t x, uint32_t y)
+{
+    s->e[x].next = y;
+    s->e[y].prev = x;
+}
+
+/* A dead border edge at vertex v gets another chance: its surroundings
+ * changed. */
+static tessel_status revive(af *s, uint32_t v)
+{
+    if (v == NONE)
+        return TESSEL_OK;
+    uint32_t ids[2] = {s->vin[v], s->vout[v]};
+    for (int i = 0; i < 2; i++) {
+        uint32_t id = ids[i];
+        if (id == NONE || s->e[id].state != EDGE_DEAD || s->e[id].retries >= MAX_RETRIES)
+            continue;
+        s->e[id].state = EDGE_ACTIVE;
+        s->e[id].retries++;
+        tessel_status st = push_edge(s, id);
+        if (st)
+            return st;
+    }
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Validity of a new triangle                                                */
+/* ------------------------------------------------------------------------ */
+
+/* Orthonormal u, v spanning the plane with unit normal n. */
+static void plane_frame(const double n[3], double u[3], double v[3])
+{
+    double a[3] = {1.0, 0.0, 0.0};
+    if (fabs(n[0]) > 0.6) {
+        a[0] = 0.0;
+        a[1] = 1.0;
+    }
+    tsl_cross(n, a, u);
+    tsl_normalize(u);
+    tsl_cross(n, u, v);
+}
+
+static inline void project2(const double p[3], const double o[3], const double u[3],
+                            const double v[3], double out[2])
+{
+    double d[3];
+    tsl_sub(p, o, d);
+    out[0] = tsl_dot(d, u);
+    out[1] = tsl_dot(d, v);
+}
+
+static inline double cross2(const double a[2], const double b[2])
+{
+    return a[0] * b[1] - a[1] * b[0];
+}
+
+/* How two triangles lie in a projection: clearly apart, overlapping, or
+ * too close to tell in floating point. */
+enum { PROJ_APART, PROJ_UNSURE, PROJ_OVERLAP };
+
+/* Where direction d lies with respect to the sector from p counter-
+ * clockwise to q (narrower than pi): +1 clearly inside, -1 clearly
+ * outside, 0 on its boundary within a relative tolerance (sine 1e-6). */
+static int sector_side(const double d[2], const double p[2], const double q[2])
+{
+    const double tol = 1e-6;
+    double ld = sqrt(d[0] * d[0] + d[1] * d[1]), lp = sqrt(p[0] * p[0] + p[1] * p[1]),
+           lq = sqrt(q[0] * q[0] + q[1] * q[1]);
+    double a = cross2(p, d), b = cross2(d, q);
+    double ta = tol * lp * ld, tb = tol * ld * lq;
+    if (a > ta && b > tb)
+        return 1;
+    if (a < -ta || b < -tb)
+        return -1;
+    return 0;
+}
+
+/* The paper's projection test for two triangles X and E projected onto the
+ * plane with unit normal nrm (facing it), sharing the vertex at position ix
+ * of X and ie of E (ix = -1: sharing none). Disjoint projections also mean
+ * disjoint triangles in space (beyond the shared vertex), so PROJ_APART
+ * spares the exact test. */
+static int projected_relation(const double *px[3], const double *pe[3], int ix, int ie,
+                              const double nrm[3])
+{
+    double u[3], v[3], x[3][2], y[3][2];
+    plane_frame(nrm, u, v);
+    for (int i = 0; i < 3; i++) {
+        project2(px[i], px[0], u, v, x[i]);
+        project2(pe[i], px[0], u, v, y[i]);
+    }
+    if (ix >= 0) {
+        /* Sectors around the shared vertex: apart when every bounding ray
+         * of each is clearly outside the other (both are narrower than pi,
+         * so neither can contain the other). */
+        const double *o = x[ix];
+        double p1[2], q1[2], p2[2], q2[2];
+        for (int c = 0; c < 2; c++) {
+            p1[c] = x[(ix + 1) % 3][c] - o[c];
+            q1[c] = x[(ix + 2) % 3][c] - o[c];
+            p2[c] = y[(ie + 1) % 3][c] - o[c];
+            q2[c] = y[(ie + 2) % 3][c] - o[c];
+        }
+        if (cross2(p1, q1) <= 0.0 || cross2(p2, q2) <= 0.0)
+            return PROJ_OVERLAP; /* folded in this projection */
+        int s1 = sector_side(p2, p1, q1), s2 = sector_side(q2, p1, q1);
+        int s3 = sector_side(p1, p2, q2), s4 = sector_side(q1, p2, q2);
+        if (s1 > 0 || s2 > 0 || s3 > 0 || s4 > 0)
+            return PROJ_OVERLAP;
+        return s1 < 0 && s2 < 0 && s3 < 0 && s4 < 0 ? PROJ_APART : PROJ_UNSURE;
+    }
+    /* Separating axis among the six edges (both counter-clockwise). */
+    double scale = 0.0;
+    for (int i = 0; i < 3; i++)
+        for (int c = 0; c < 2; c++)
+            scale = dmax(scale, dmax(fabs(x[i][c]), fabs(y[i][c])));
+    double tol = 1e-9 * scale * scale;
+    int result = PROJ_OVERLAP;
+    for (int pass = 0; pass < 2; pass++) {
+        double(*a)[2] = pass ? y : x;
+        double(*b)[2] = pass ? x : y;
+        for (int i = 0; i < 3; i++) {
+            const double *p = a[i], *q = a[(i + 1) % 3];
+            double ed[2] = {q[0] - p[0], q[1] - p[1]};
+            double worst = -INFINITY;
+            for (int j = 0; j < 3; j++) {
+                double w[2] = {b[j][0] - p[0], b[j][1] - p[1]};
+                worst = dmax(worst, cross2(ed, w));
+            }
+            if (worst < -tol)
+                return PROJ_APART;
+            if (worst <= tol)
+                result = PROJ_UNSURE;
+        }
+    }
+    return result;
+}
+
+/* A triangle about to be added: vertex ids, coordinates, unit normal,
+ * longest edge. */
+typedef struct af_tri {
+    uint32_t v[3];
+    double p[3][3];
+    double n[3];
+    double maxlen;
+    double cos_fold; /* sharpest fold allowed along an edge it shares */
+    bool exact_only; /* skip the projection test: only validity counts */
+} af_tri;
+
+/* Fills x from ids; false when the triangle is degenerate. */
+static bool make_tri(const af *s, uint32_t a, uint32_t b, uint32_t c, af_tri *x)
+{
+    x->v[0] = a;
+    x->v[1] = b;
+    x->v[2] = c;
+    x->cos_fold = s->cos_theta_max;
+    x->exact_only = false;
+    for (int i = 0; i < 3; i++)
+        point(s, x->v[i], x->p[i]);
+    double area2 = tri_normal(x->p[0], x->p[1], x->p[2], x->n);
+    x->maxlen = 0.0;
+    for (int i = 0; i < 3; i++) {
+        double d[3];
+        tsl_sub(x->p[(i + 1) % 3], x->p[i], d);
+        x->maxlen = dmax(x->maxlen, tsl_norm(d));
+    }
+    /* Sine of the smallest angle is at least area2 / maxlen^2. */
+    if (!(area2 > 1e-9 * x->maxlen * x->maxlen))
+        return false;
+    const double *pp[3] = {x->p[0], x->p[1], x->p[2]};
+    return !tsl_triangle_degenerate(pp);
+}
+
+/* Largest angle of x, as its cosine (smaller = wider). */
+static double min_cos_angle(const af_tri *x)
+{
+    double m = 1.0;
+    for (int i = 0; i < 3; i++) {
+        double u[3], v[3];
+        tsl_sub(x->p[(i + 1) % 3], x->p[i], u);
+        tsl_sub(x->p[(i + 2) % 3], x->p[i], v);
+        double c = tsl_dot(u, v) / (tsl_norm(u) * tsl_norm(v));
+        m = dmin(m, c);
+    }
+    return m;
+}
+
+/* True when the new triangle x cannot coexist with the existing or pending
+ * triangle with vertex ids ev, coordinates pe and unit normal ne. star[i]
+ * is the tangent plane normal at x's vertex i. */
+static bool conflict(const af_tri *x, const double star[3][3], const uint32_t ev[3],
+                     const double *pe[3], const double ne[3])
+{
+    const double *px[3] = {x->p[0], x->p[1], x->p[2]};
+    int shared = 0, sx[3], se[3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (x->v[i] == ev[j]) {
+                sx[shared] = i;
+                se[shared] = j;
+                shared++;
+            }
+    if (shared == 3)
+        return true;
+    double d = tsl_dot(x->n, ne);
+    if (shared == 2) {
+        /* Opposite directions along the common edge (orientation), a fold no
+         * sharper than theta_max, no coplanar overlap. */
+        bool dx = (sx[0] + 1) % 3 == sx[1];
+        bool de = (se[0] + 1) % 3 == se[1];
+        if (dx == de || d < x->cos_fold)
+            return true;
+        return tsl_triangles_intersect(x->v, px, ev, pe);
+    }
+    /* Boxes: X's own and X's grown by half its longest edge, for the
+     * projection test of triangles sharing nothing. */
+    bool touches = true;
+    if (shared == 0) {
+        double margin = 0.5 * x->maxlen;
+        for (int c = 0; c < 3; c++) {
+            double lo = dmin(px[0][c], dmin(px[1][c], px[2][c]));
+            double hi = dmax(px[0][c], dmax(px[1][c], px[2][c]));
+            double elo = dmin(pe[0][c], dmin(pe[1][c], pe[2][c]));
+            double ehi = dmax(pe[0][c], dmax(pe[1][c], pe[2][c]));
+            if (ehi < lo - margin || elo > hi + margin)
+                return false;
+            if (ehi < lo || elo > hi)
+                touches = false;
+        }
+    }
+    int rel = PROJ_UNSURE;
+    if (x->exact_only) {
+        /* validity only */
+    } else if (shared == 1) {
+        /* The paper's test: the triangle against the star of the shared
+         * vertex, in the vertex's tangent plane (star normal). */
+        const double *nrm = star[sx[0]];
+        if (tsl_dot(nrm, x->n) > 0.1 && tsl_dot(nrm, ne) > 0.1)
+            rel = projected_relation(px, pe, sx[0], se[0], nrm);
+    } else if (d > 0.0) {
+        /* Sharing nothing: in the plane bisecting both normals, when close
+         * in height (farther, overlapping projections are another layer). */
+        double nrm[3] = {x->n[0] + ne[0], x->n[1] + ne[1], x->n[2] + ne[2]};
+        tsl_normalize(nrm);
+        double h = 0.0;
+        for (int i = 0; i < 3; i++) {
+            double dd[3];
+            tsl_sub(pe[i], px[i], dd);
+            h += tsl_dot(dd, nrm) / 3.0;
+        }
+        bool near = fabs(h) < 0.5 * x->maxlen;
+        if (near || touches)
+            rel = projected_relation(px, pe, -1, -1, nrm);
+        if (rel == PROJ_OVERLAP && !near)
+            rel = PROJ_UNSURE;
+    }
+    if (rel == PROJ_OVERLAP)
+        return true;
+    if (rel == PROJ_APART)
+        return false;
+    if (!touches)
+        return false;
+    return tsl_triangles_intersect(x->v, px, ev, pe);
+}
+
+/* The triangle's normal lies within the normal cone around each vertex's
+ * surface normal, oriented as the surface took it (either way for a vertex
+ * not yet on the surface). This keeps the front from folding back over
+ * itself where noise lets folds pass the dihedral test (i). */
+static bool normals_agree(const af *s, const af_tri *x, double cos_limit)
+{
+    for (int i = 0; i < 3; i++) {
+        const float *l = s->ln + 3 * (size_t)x->v[i];
+        double d = x->n[0] * l[0] + x->n[1] * l[1] + x->n[2] * l[2];
+        int sign = s->vsign[x->v[i]];
+        if (sign == 0)
+            d = fabs(d);
+        else if (sign < 0)
+            d = -d;
+        if (d < cos_limit)
+            return false;
+    }
+    return true;
+}
+
+/* *ok: x may be added to the mesh (together with `other`, a triangle added
+ * in the same step, or NULL). */
+static tessel_status check_triangle(af *s, const af_tri *x, const af_tri *other, bool *ok)
+{
+    *ok = false;
+    /* Tangent planes of the vertices: their stars' mean normal (with x's). */
+    double star[3][3];
+    for (int i = 0; i < 3; i++) {
+        for (int c = 0; c < 3; c++)
+            star[i][c] = x->n[c];
+        for (uint32_t cn = s->vhead[x->v[i]]; cn != NONE; cn = s->cnext[cn])
+            for (int c = 0; c < 3; c++)
+                star[i][c] += s->ti[cn / 3].n[c];
+        if (!tsl_normalize(star[i]))
+            for (int c = 0; c < 3; c++)
+                star[i][c] = x->n[c];
+    }
+    const double *px[3] = {x->p[0], x->p[1], x->p[2]};
+    double lo[3], hi[3];
+    tri_box(px, lo, hi);
+    /* The projection test looks half an edge above and below. */
+    double margin = 0.5 * x->maxlen;
+    for (int i = 0; i < 3; i++) {
+        lo[i] -= margin;
+        hi[i] += margin;
+    }
+    tessel_status st = tsl_trigrid_query(&s->grid, lo, hi);
+    if (st)
+        return st;
+    for (size_t i = 0; i < s->grid.found_count; i++) {
+        uint32_t t = s->grid.found[i];
+        const af_tinfo *info = &s->ti[t];
+        if (info->hi[0] < lo[0] || info->lo[0] > hi[0] || info->hi[1] < lo[1] ||
+            info->lo[1] > hi[1] || info->hi[2] < lo[2] || info->lo[2] > hi[2])
+            continue;
+        const uint32_t *ev = s->tri + 3 * (size_t)t;
+        double q[3][3], ne[3] = {info->n[0], info->n[1], info->n[2]};
+        for (int j = 0; j < 3; j++)
+            point(s, ev[j], q[j]);
+        const double *pe[3] = {q[0], q[1], q[2]};
+        if (conflict(x, star, ev, pe, ne))
+            return TESSEL_OK;
+    }
+    if (other) {
+        const double *pe[3] = {other->p[0], other->p[1], other->p[2]};
+        if (conflict(x, star, other->v, pe, other->n))
+            return TESSEL_OK;
+    }
+    *ok = true;
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* GET_POINT (Algorithm 2)                                                   */
+/* ------------------------------------------------------------------------ */
+
+typedef struct af_plan {
+    int kind;
+    uint32_t t;  /* third vertex */
+    uint32_t w;  /* r or p for bridges */
+} af_plan;
+
+static int cmp_cand(const void *pa, const void *pb)
+{
+    const af_cand *a = pa, *b = pb;
+    if (a->level != b->level)
+        return a->level < b->level ? -1 : 1;
+    if (a->cos_t != b->cos_t)
+        return a->cos_t < b->cos_t ? -1 : 1;
+    return a->t < b->t ? -1 : (a->t > b->t);
+}
+
+/* Combinatorial case of triangle (b, a, t) on border edge id; false when it
+ * would break the manifold (t interior, or an edge it needs already
+ * exists). */
+static bool classify(const af *s, uint32_t id, uint32_t t, int *kind)
+{
+    const af_edge *e = &s->e[id];
+    uint32_t a = e->from, b = e->to;
+    if (is_free(s, t)) {
+        *kind = PLAN_FREE;
+        return true;
+    }
+    if (is_interior(s, t))
+        return false;
+    bool ear_a = s->e[e->prev].from == t;
+    bool ear_b = s->e[e->next].to == t;
+    if (ear_a && ear_b) {
+        *kind = PLAN_HOLE;
+        return true;
+    }
+    if (ear_b) {
+        *kind = PLAN_EAR_B;
+        return !edge_exists(s, a, t);
+    }
+    if (ear_a) {
+        *kind = PLAN_EAR_A;
+        return !edge_exists(s, t, b);
+    }
+    *kind = PLAN_BRIDGE_R;
+    return !edge_exists(s, a, t) && !edge_exists(s, t, b);
+}
+
+/* New edge x-y within the length bound (iii). */
+static bool short_enough(const af *s, const double *px, const double *py, uint32_t x,
+                         uint32_t y)
+{
+    double d[3];
+    tsl_sub(py, px, d);
+    double lim = s->eps1 * dmin(s->nnd[x], s->nnd[y]);
+    return tsl_norm(d) < lim;
+}
+
+/* The second triangle of a bridge to t; *ok when one of the two choices is
+ * valid (the one with the shorter new edge is preferred). */
+static tessel_status plan_bridge(af *s, uint32_t id, const af_tri *first, af_plan *plan,
+                                 bool *ok)
+{
+    const af_edge *e = &s->e[id];
+    uint32_t a = e->from, b = e->to, t = plan->t;
+    uint32_t r = s->e[s->vout[t]].to, p = s->e[s->vin[t]].from;
+    af_tri opt[2];
+    bool valid[2] = {false, false};
+    double len[2] = {INFINITY, INFINITY};
+    /* (r, t, a) closes t->r and adds a->r; (b, t, p) closes p->t, adds p->b. */
+    uint32_t tri_v[2][3] = {{r, t, a}, {b, t, p}};
+    uint32_t ends[2][2] = {{a, r}, {p, b}};
+    for (int o = 0; o < 2; o++) {
+        uint32_t x = ends[o][0], y = ends[o][1];
+        if (x == y || edge_exists(s, x, y))
+            continue;
+        if (!make_tri(s, tri_v[o][0], tri_v[o][1], tri_v[o][2], &opt[o]))
+            continue;
+        double px[3], py[3], d[3];
+        point(s, x, px);
+        point(s, y, py);
+        if (!short_enough(s, px, py, x, y) || min_cos_angle(&opt[o]) <= s->cos_phi ||
+            !normals_agree(s, &opt[o], s->cos_normal))
+            continue;
+        tsl_sub(py, px, d);
+        len[o] = tsl_norm(d);
+        bool v;
+        tessel_status st = check_triangle(s, &opt[o], first, &v);
+        if (st)
+            return st;
+        valid[o] = v;
+    }
+    *ok = valid[0] || valid[1];
+    if (*ok) {
+        int o = valid[0] && (!valid[1] || len[0] <= len[1]) ? 0 : 1;
+        plan->kind = o == 0 ? PLAN_BRIDGE_R : PLAN_BRIDGE_P;
+        plan->w = o == 0 ? r : p;
+    }
+    return TESSEL_OK;
+}
+
+static tessel_status find_plan(af *s, uint32_t id, af_plan *plan, bool *found)
+{
+    *found = false;
+    const af_edge *e = &s->e[id];
+    uint32_t a = e->from, b = e->to;
+    const uint32_t *t0 = s->tri + 3 * (size_t)e->tri;
+    uint32_t c = t0[0] != a && t0[0] != b ? t0[0] : t0[1] != a && t0[1] != b ? t0[1] : t0[2];
+    const float *tn = s->ti[e->tri].n;
+    double n1[3] = {tn[0], tn[1], tn[2]};
+    double pa[3], pb[3], ab[3];
+    point(s, a, pa);
+    point(s, b, pb);
+    tsl_sub(pb, pa, ab);
+    double lab = tsl_norm(ab);
+    double lim = s->eps1 * dmin(s->nnd[a], s->nnd[b]);
+
+    af_cand cand[2 * MAX_K];
+    size_t nc = 0;
+    for (int side = 0; side < 2; side++) {
+        const uint32_t *nb = s->knn + (size_t)(side ? b : a) * s->k;
+        for (uint32_t j = 0; j < s->k; j++) {
+            uint32_t t = nb[j];
+            if (t == NONE || t == a || t == b || t == c || s->dup[t] || is_interior(s, t))
+                continue;
+            bool seen = false;
+            for (size_t q = 0; q < nc && !seen; q++)
+                seen = cand[q].t == t;
+            if (seen)
+                continue;
+            double pt[3], at[3], bt[3];
+            point(s, t, pt);
+            tsl_sub(pt, pa, at);
+            tsl_sub(pt, pb, bt);
+            double la = tsl_norm(at), lb = tsl_norm(bt);
+            if (!(dmax(la, lb) < lim)) /* (iii) */
+                continue;
+            /* (iv): angles at a and b below phi. */
+            if (tsl_dot(ab, at) <= s->cos_phi * lab * la ||
+                -tsl_dot(ab, bt) <= s->cos_phi * lab * lb)
+                continue;
+            /* (i): normal of (b, a, t) against the normal of (a, b, c). */
+            double nt[3];
+            double ba[3] = {-ab[0], -ab[1], -ab[2]};
+            tsl_cross(ba, bt, nt);
+            double area2 = tsl_norm(nt);
+            if (!(area2 > 1e-9 * dmax(lab, dmax(la, lb)) * dmax(lab, dmax(la, lb))))
+                continue;
+            double cosd = tsl_dot(nt, n1) / area2;
+            if (cosd < s->cos_theta_max)
+                continue;
+            double ang = acos(dmin(1.0, dmax(-1.0, cosd)));
+            int level = ang <= s->theta0 ? 0 : (int)ceil((ang - s->theta0) / s->theta_step);
+            cand[nc].t = t;
+            cand[nc].level = level;
+            cand[nc].cos_t = tsl_dot(at, bt) / (la * lb);
+            nc++;
+        }
+    }
+    qsort(cand, nc, sizeof *cand, cmp_cand);
+    for (size_t i = 0; i < nc; i++) {
+        uint32_t t = cand[i].t;
+        int kind;
+        if (!classify(s, id, t, &kind))
+            continue;
+        af_tri x;
+        if (!make_tri(s, b, a, t, &x))
+            continue;
+        /* A triangle that only closes border edges (ear, hole) cannot fold
+         * the front back: it needs only to face the vertices' side. */
+        bool closing = kind == PLAN_EAR_A || kind == PLAN_EAR_B || kind == PLAN_HOLE;
+        if (closing)
+            x.cos_fold = s->cos_closing_fold;
+        if (!normals_agree(s, &x, closing ? s->cos_closing_normal : s->cos_normal))
+            continue;
+        bool ok;
+        tessel_status st = check_triangle(s, &x, NULL, &ok);
+        if (st)
+            return st;
+        if (!ok)
+            continue;
+        plan->kind = kind;
+        plan->t = t;
+        plan->w = NONE;
+        if (kind == PLAN_BRIDGE_R) {
+            st = plan_bridge(s, id, &x, plan, &ok);
+            if (st)
+                return st;
+            if (!ok)
+                continue;
+        }
+        *found = true;
+        return TESSEL_OK;
+    }
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Insertion (Algorithm 1)                                                   */
+/* ------------------------------------------------------------------------ */
+
+static void close_edge(af *s, uint32_t id) { s->e[id].state = EDGE_CLOSED; }
+
+static tessel_status commit(af *s, uint32_t id, const af_plan *plan)
+{
+    af_edge e = s->e[id];
+    uint32_t a = e.from, b = e.to, t = plan->t, P = e.prev, N = e.next;
+    uint32_t T, T2, A, B;
+    bool was_free = is_free(s, t);
+    tessel_status st = add_triangle(s, b, a, t, &T);
+    if (st)
+        return st;
+    switch (plan->kind) {
+    case PLAN_FREE:
+        if ((st = new_edge(s, a, t, T, &A)) || (st = new_edge(s, t, b, T, &B)))
+            return st;
+        link_edges(s, P, A);
+        link_edges(s, A, B);
+        link_edges(s, B, N);
+        s->vout[a] = A;
+        s->vin[t] = A;
+        s->vout[t] = B;
+        s->vin[b] = B;
+        close_edge(s, id);
+        break;
+    case PLAN_EAR_B: {
+        uint32_t NN = s->e[N].next;
+        if ((st = new_edge(s, a, t, T, &A)))
+            return st;
+        link_edges(s, P, A);
+        link_edges(s, A, NN);
+        s->vout[a] = A;
+        s->vin[t] = A;
+        s->vin[b] = s->vout[b] = NONE;
+        close_edge(s, id);
+        close_edge(s, N);
+        break;
+    }
+    case PLAN_EAR_A: {
+        uint32_t PP = s->e[P].prev;
+        if ((st = new_edge(s, t, b, T, &B)))
+            return st;
+        link_edges(s, PP, B);
+        link_edges(s, B, N);
+        s->vout[t] = B;
+        s->vin[b] = B;
+        s->vin[a] = s->vout[a] = NONE;
+        close_edge(s, P);
+        close_edge(s, id);
+        break;
+    }
+    case PLAN_HOLE:
+        s->vin[a] = s->vout[a] = s->vin[b] = s->vout[b] = s->vin[t] = s->vout[t] = NONE;
+        close_edge(s, P);
+        close_edge(s, id);
+        close_edge(s, N);
+        break;
+    case PLAN_BRIDGE_R: {
+        /* (b, a, t) + (r, t, a): closes a->b and t->r, adds t->b and a->r. */
+        uint32_t r = plan->w, R = s->vout[t], Rn = s->e[R].next, Pt = s->vin[t], C;
+        if ((st = add_triangle(s, r, t, a, &T2)) || (st = new_edge(s, t, b, T, &B)) ||
+            (st = new_edge(s, a, r, T2, &C)))
+            return st;
+        link_edges(s, P, C);
+        link_edges(s, C, Rn);
+        link_edges(s, Pt, B);
+        link_edges(s, B, N);
+        s->vout[a] = C;
+        s->vin[r] = C;
+        s->vout[t] = B;
+        s->vin[b] = B;
+        close_edge(s, id);
+        close_edge(s, R);
+        s->stats.bridges++;
+        break;
+    }
+    case PLAN_BRIDGE_P: {
+        /* (b, a, t) + (b, t, p): closes a->b and p->t, adds a->t and p->b. */
+        uint32_t p = plan->w, Pt = s->vin[t], Pp = s->e[Pt].prev, R = s->vout[t], D;
+        if ((st = add_triangle(s, b, t, p, &T2)) || (st = new_edge(s, a, t, T, &A)) ||
+            (st = new_edge(s, p, b, T2, &D)))
+            return st;
+        link_edges(s, P, A);
+        link_edges(s, A, R);
+        link_edges(s, Pp, D);
+        link_edges(s, D, N);
+        s->vout[a] = A;
+        s->vin[t] = A;
+        s->vout[p] = D;
+        s->vin[b] = D;
+        close_edge(s, id);
+        close_edge(s, Pt);
+        s->stats.bridges++;
+        break;
+    }
+    default:
+        return TESSEL_ERR_INTERNAL;
+    }
+    if (was_free)
+        s->used++;
+    if ((st = revive(s, a)) || (st = revive(s, b)) || (st = revive(s, t)) ||
+        (st = revive(s, plan->w)))
+        return st;
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Seeds                                                                     */
+/* ------------------------------------------------------------------------ */
+
+/* Sign that makes a seed's normal agree with its surroundings: the nearest
+ * existing triangle within reach, so that fronts meeting later have
+ * matching orientations and can join; else the points' normals when there
+ * are any; else +1. */
+static tessel_status seed_sign(af *s, const af_tri *x, int *sign)
+{
+    *sign = 0;
+    if (s->nt > 0) {
+        double c[3], lo[3], hi[3];
+        for (int i = 0; i < 3; i++) {
+            c[i] = (x->p[0][i] + x->p[1][i] + x->p[2][i]) / 3.0;
+            double reach = 2.0 * dmax(x->maxlen, s->max_edge);
+            lo[i] = c[i] - reach;
+            hi[i] = c[i] + reach;
+        }
+        tessel_status st = tsl_trigrid_query(&s->grid, lo, hi);
+        if (st)
+            return st;
+        double best = INFINITY;
+        for (size_t i = 0; i < s->grid.found_count; i++) {
+            uint32_t t = s->grid.found[i];
+            double d2 = 0.0;
+            for (int j = 0; j < 3; j++) {
+                double m = 0.0;
+                for (int q = 0; q < 3; q++)
+                    m += s->xyz[3 * (size_t)s->tri[3 * (size_t)t + q] + j] / 3.0;
+                d2 += (m - c[j]) * (m - c[j]);
+            }
+            if (d2 < best) {
+                best = d2;
+                double dot = 0.0;
+                for (int j = 0; j < 3; j++)
+                    dot += x->n[j] * s->ti[t].n[j];
+                *sign = dot < 0.0 ? -1 : 1;
+            }
+        }
+    }
+    if (*sign == 0 && s->pnormals) {
+        double sum = 0.0;
+        for (int i = 0; i < 3; i++) {
+            const float *m = s->pnormals + 3 * (size_t)x->v[i];
+            sum += x->n[0] * m[0] + x->n[1] * m[1] + x->n[2] * m[2];
+        }
+        *sign = sum < 0.0 ? -1 : 1;
+    }
+    if (*sign == 0)
+        *sign = 1;
+    return TESSEL_OK;
+}
+
+/* Starts a front at point p (section 2.4): p, its nearest neighbour q and
+ * the neighbour r of p that maximises the angle at r, all unused. */
+static tessel_status try_seed(af *s, uint32_t p, bool *ok)
+{
+    *ok = false;
+    if (!is_free(s, p) || s->dup[p])
+        return TESSEL_OK;
+    const uint32_t *nb = s->knn + (size_t)p * s->k;
+    /* Only away from the surface built so far: a point next to it is in a
+     * hole or a stray point, and a front from it could not join. */
+    for (uint32_t j = 0; j < s->k; j++)
+        if (nb[j] != NONE && !is_free(s, nb[j]))
+            return TESSEL_OK;
+    uint32_t q = nb[0];
+    if (q == NONE || s->dup[q] || !is_free(s, q))
+        return TESSEL_OK;
+    double pp[3], pq[3];
+    point(s, p, pp);
+    point(s, q, pq);
+    uint32_t best = NONE;
+    double best_cos = 1.0;
+    for (uint32_t j = 1; j < s->k; j++) {
+        uint32_t r = nb[j];
+        if (r == NONE || s->dup[r] || !is_free(s, r))
+            continue;
+        double pr[3], u[3], v[3];
+        point(s, r, pr);
+        tsl_sub(pp, pr, u);
+        tsl_sub(pq, pr, v);
+        double lu = tsl_norm(u), lv = tsl_norm(v);
+        double lim = s->eps1 * dmin(s->nnd[p], s->nnd[q]);
+        if (!(dmax(lu, lv) < lim))
+            continue;
+        double cr = tsl_dot(u, v) / (lu * lv);
+        if (cr < best_cos) {
+            af_tri x;
+            if (!make_tri(s, p, q, r, &x) || min_cos_angle(&x) <= s->cos_phi)
+                continue;
+            best_cos = cr;
+            best = r;
+        }
+    }
+    if (best == NONE)
+        return TESSEL_OK;
+    af_tri x;
+    make_tri(s, p, q, best, &x);
+    int sign;
+    tessel_status st = seed_sign(s, &x, &sign);
+    if (st)
+        return st;
+    if (sign < 0)
+        make_tri(s, p, best, q, &x);
+    if (!normals_agree(s, &x, s->cos_normal))
+        return TESSEL_OK;
+    bool valid;
+    if ((st = check_triangle(s, &x, NULL, &valid)))
+        return st;
+    if (!valid)
+        return TESSEL_OK;
+    uint32_t T, E[3];
+    if ((st = add_triangle(s, x.v[0], x.v[1], x.v[2], &T)))
+        return st;
+    for (int i = 0; i < 3; i++)
+        if ((st = new_edge(s, x.v[i], x.v[(i + 1) % 3], T, &E[i])))
+            return st;
+    for (int i = 0; i < 3; i++) {
+        link_edges(s, E[i], E[(i + 1) % 3]);
+        s->vout[x.v[i]] = E[i];
+        s->vin[x.v[(i + 1) % 3]] = E[i];
+    }
+    s->used += 3;
+    s->stats.seeds++;
+    *ok = true;
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Orientation of the components                                             */
+/* ------------------------------------------------------------------------ */
+
+static uint32_t uf_find(uint32_t *parent, uint32_t x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    return x;
+}
+
+/* Closed components outward by signed volume; open ones by the points'
+ * normals when there are any. Components are vertex-connected, which is
+ * edge-connected since every vertex has a single fan. */
+static tessel_status orient_components(af *s)
+{
+    uint32_t *parent = tsl_alloc_array(s->n, sizeof *parent);
+    double *score = tsl_calloc_array(s->n, sizeof *score);
+    uint32_t *open = tsl_calloc_array(s->n, sizeof *open);
+    if (!parent || !score || !open) {
+        free(parent);
+        free(score);
+        free(open);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t i = 0; i < s->n; i++)
+        parent[i] = (uint32_t)i;
+    for (size_t t = 0; t < s->nt; t++) {
+        const uint32_t *v = s->tri + 3 * t;
+        for (int i = 1; i < 3; i++) {
+            uint32_t x = uf_find(parent, v[0]), y = uf_find(parent, v[i]);
+            if (x != y)
+                parent[x < y ? y : x] = x < y ? x : y;
+        }
+    }
+    for (size_t i = 0; i < s->ne; i++)
+        if (s->e[i].state != EDGE_CLOSED)
+            open[uf_find(parent, s->e[i].from)] = 1;
+    /* Volumes relative to each component's root vertex keep the sums
+     * accurate far from the origin. */
+    for (size_t t = 0; t < s->nt; t++) {
+        const uint32_t *v = s->tri + 3 * t;
+        uint32_t root = uf_find(parent, v[0]);
+        double p[3][3], o[3];
+        point(s, root, o);
+        for (int i = 0; i < 3; i++) {
+            point(s, v[i], p[i]);
+            tsl_sub(p[i], o, p[i]);
+        }
+        if (!open[root]) {
+            double c[3];
+            tsl_cross(p[1], p[2], c);
+            score[root] += tsl_dot(p[0], c);
+        } else if (s->pnormals) {
+            double n[3], u[3], w[3];
+            tsl_sub(p[1], p[0], u);
+            tsl_sub(p[2], p[0], w);
+            tsl_cross(u, w, n);
+            for (int i = 0; i < 3; i++) {
+                const float *m = s->pnormals + 3 * (size_t)v[i];
+                score[root] += n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
+            }
+        }
+    }
+    for (size_t i = 0; i < s->n; i++)
+        if (parent[i] == i && score[i] < 0.0)
+            s->stats.flipped_components++;
+    for (size_t t = 0; t < s->nt; t++) {
+        uint32_t *v = s->tri + 3 * t;
+        if (score[uf_find(parent, v[0])] < 0.0) {
+            uint32_t tmp = v[1];
+            v[1] = v[2];
+            v[2] = tmp;
+        }
+    }
+    free(parent);
+    free(score);
+    free(open);
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Driver                                                                    */
+/* ------------------------------------------------------------------------ */
+
+static void af_free(af *s)
+{
+    free(s->knn);
+    free(s->nnd);
+    free(s->dup);
+    free(s->ln);
+    free(s->vsign);
+    free(s->tri);
+    free(s->ti);
+    free(s->cnext);
+    free(s->vhead);
+    free(s->vin);
+    free(s->vout);
+    free(s->e);
+    free(s->queue);
+    tsl_trigrid_free(&s->grid);
+}
+
+/* Neighbour lists (self excluded), nearest-neighbour distances and exact
+ * duplicates. */
+static tessel_status prepare_neighbours(af *s, int threads)
+{
+    size_t kq = (size_t)s->k + 1, rows;
+    if (!tsl_mul_size(s->n, kq, &rows))
+        return TESSEL_ERR_LIMIT;
+    uint32_t *idx = tsl_alloc_array(rows, sizeof *idx);
+    float *d2 = tsl_alloc_array(rows, sizeof *d2);
+    s->knn = tsl_alloc_array(s->n * s->k, sizeof *s->knn);
+    s->nnd = tsl_alloc_array(s->n, sizeof *s->nnd);
+    s->dup = tsl_calloc_array(s->n, sizeof *s->dup);
+    s->ln = tsl_alloc_array(s->n * 3, sizeof *s->ln);
+    s->vsign = tsl_calloc_array(s->n, sizeof *s->vsign);
+    tessel_index *index = NULL;
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!idx || !d2 || !s->knn || !s->nnd || !s->dup || !s->ln || !s->vsign)
+        goto done;
+    if ((st = tessel_index_build(&index, s->xyz, s->n)))
+        goto done;
+    if ((st = tessel_index_knn_batch(index, s->xyz, s->n, kq, idx, d2, threads)))
+        goto done;
+    const float *given = s->pnormals;
+    long long n = (long long)s->n;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+    for (long long ii = 0; ii < n; ii++) {
+        size_t i = (size_t)ii;
+        const uint32_t *row = idx + i * kq;
+        const float *rd = d2 + i * kq;
+        uint32_t *out = s->knn + i * s->k;
+        size_t m = 0;
+        double sum = 0.0, mean[3] = {0.0, 0.0, 0.0}, cov[9] = {0.0};
+        unsigned counted = 0, used = 0;
+        for (size_t j = 0; j < kq; j++) {
+            if (row[j] == NONE)
+                continue;
+            const float *q = s->xyz + 3 * (size_t)row[j];
+            for (int c = 0; c < 3; c++)
+                mean[c] += q[c];
+            used++;
+            if (row[j] == i)
+                continue;
+            if (rd[j] == 0.0f && row[j] < i)
+                s->dup[i] = 1;
+            if (rd[j] > 0.0f && counted < SPACING_NEIGHBOURS) {
+                sum += sqrt((double)rd[j]);
+                counted++;
+            }
+            if (m < s->k)
+                out[m++] = row[j];
+        }
+        for (; m < s->k; m++)
+            out[m] = NONE;
+        s->nnd[i] = counted ? (float)(sum / counted) : INFINITY;
+        float *ln = s->ln + 3 * i;
+        if (given) {
+            double g[3] = {given[3 * i], given[3 * i + 1], given[3 * i + 2]};
+            if (tsl_normalize(g) && isfinite(g[0] + g[1] + g[2])) {
+                for (int c = 0; c < 3; c++)
+                    ln[c] = (float)g[c];
+                continue;
+            }
+        }
+        /* Normal of the least-squares plane through the neighbourhood. */
+        for (int c = 0; c < 3; c++)
+            mean[c] /= used;
+        for (size_t j = 0; j < kq; j++) {
+            if (row[j] == NONE)
+                continue;
+            const float *q = s->xyz + 3 * (size_t)row[j];
+            double d[3] = {q[0] - mean[0], q[1] - mean[1], q[2] - mean[2]};
+            for (int r = 0; r < 3; r++)
+                for (int c = 0; c < 3; c++)
+                    cov[3 * r + c] += d[r] * d[c];
+        }
+        double w[3], v[9];
+        tsl_eigen_sym3(cov, w, v);
+        double nrm[3] = {v[0], v[3], v[6]};
+        if (!tsl_normalize(nrm)) {
+            nrm[0] = 0.0;
+            nrm[1] = 0.0;
+            nrm[2] = 1.0;
+        }
+        for (int c = 0; c < 3; c++)
+            ln[c] = (float)nrm[c];
+    }
+    st = TESSEL_OK;
+done:
+    tessel_index_destroy(index);
+    free(idx);
+    free(d2);
+    return st;
+}
+
+/* Closes the border loop through edge id if it has at most max_hole_edges
+ * edges, clipping ears (the sharpest corner first) that pass the closing
+ * checks; stops at the first corner with no valid ear. */
+static tessel_status fill_hole(af *s, uint32_t id)
+{
+    for (;;) {
+        size_t len = 1;
+        for (uint32_t e = s->e[id].next; e != id; e = s->e[e].next)
+            if (++len > s->max_hole_edges)
+                return TESSEL_OK;
+        /* Try corners from the sharpest on. */
+        uint32_t order[MAX_HOLE_EDGES];
+        double cosv[MAX_HOLE_EDGES];
+        size_t m = 0;
+        uint32_t e = id;
+        do {
+            const af_edge *in = &s->e[e], *out = &s->e[in->next];
+            double pu[3], pv[3], pw[3], a[3], b[3];
+            point(s, in->from, pu);
+            point(s, in->to, pv);
+            point(s, out->to, pw);
+            tsl_sub(pu, pv, a);
+            tsl_sub(pw, pv, b);
+            double c = tsl_dot(a, b) / (tsl_norm(a) * tsl_norm(b));
+            size_t q = m++;
+            while (q > 0 && cosv[q - 1] < c) {
+                cosv[q] = cosv[q - 1];
+                order[q] = order[q - 1];
+                q--;
+            }
+            cosv[q] = c;
+            order[q] = e;
+            e = in->next;
+        } while (e != id && m < MAX_HOLE_EDGES);
+        bool done = false;
+        for (size_t i = 0; i < m && !done; i++) {
+            uint32_t eid = order[i];
+            uint32_t t = s->e[s->e[eid].next].to;
+            int kind;
+            if (!classify(s, eid, t, &kind) || (kind != PLAN_EAR_B && kind != PLAN_HOLE))
+                continue;
+            af_tri x;
+            const af_edge *ed = &s->e[eid];
+            if (!make_tri(s, ed->to, ed->from, t, &x))
+                continue;
+            /* The last triangle of a hole only needs to keep the surface
+             * valid; earlier ears keep the closing limits. */
+            bool tiny = m <= TINY_HOLE_EDGES;
+            x.cos_fold = tiny ? s->cos_last_fold : s->cos_closing_fold;
+            x.exact_only = tiny;
+            if (!tiny && !normals_agree(s, &x, s->cos_closing_normal))
+                continue;
+            bool ok;
+            tessel_status st = check_triangle(s, &x, NULL, &ok);
+            if (st)
+                return st;
+            if (!ok)
+                continue;
+            af_plan plan = {kind, t, NONE};
+            uint32_t next = s->e[s->e[eid].next].next;
+            if ((st = commit(s, eid, &plan)))
+                return st;
+            s->stats.hole_triangles++;
+            if (kind == PLAN_HOLE)
+                return TESSEL_OK;
+            /* The new edge a->t replaced eid and its successor. */
+            id = s->e[next].prev;
+            done = true;
+        }
+        if (!done)
+            return TESSEL_OK;
+    }
+}
+
+static tessel_status fill_holes(af *s)
+{
+    if (s->max_hole_edges < 3)
+        return TESSEL_OK;
+    for (size_t i = 0; i < s->ne; i++) {
+        if (s->e[i].state == EDGE_CLOSED)
+            continue;
+        tessel_status st = fill_hole(s, (uint32_t)i);
+        if (st)
+            return st;
+    }
+    return TESSEL_OK;
+}
+
+static tessel_status run_fronts(af *s, const tessel_callbacks *cb)
+{
+    tessel_status st;
+    size_t cursor = 0, steps = 0;
+    for (;;) {
+        while (s->q_count) {
+            uint32_t id = s->queue[s->q_head];
+            s->q_head = (s->q_head + 1) & (s->q_cap - 1);
+            s->q_count--;
+            if (s->e[id].state != EDGE_ACTIVE)
+                continue;
+            af_plan plan = {PLAN_FREE, NONE, NONE};
+            bool found;
+            if ((st = find_plan(s, id, &plan, &found)))
+                return st;
+            if (found) {
+                if ((st = commit(s, id, &plan)))
+                    return st;
+            } else {
+                s->e[id].state = EDGE_DEAD;
+            }
+            if ((++steps & 4095) == 0 &&
+                (st = tsl_progress(cb, "front", (double)s->used / (double)s->n)))
+                return st;
+        }
+        if ((st = fill_holes(s)))
+            return st;
+        if (s->q_count)
+            continue;
+        bool seeded = false;
+        while (cursor < s->n && !seeded) {
+            if ((st = try_seed(s, (uint32_t)cursor, &seeded)))
+                return st;
+            cursor++;
+        }
+        if (!seeded)
+            return TESSEL_OK;
+    }
+}
+
+static tessel_status check_params(const tessel_front_params *p)
+{
+    if (p->k < 3 || p->k > MAX_K || !(p->theta_deg >= 0.0 && p->theta_deg <= 90.0) ||
+        !(p->theta_step_deg > 0.0 && p->theta_step_deg <= 90.0) ||
+        !(p->max_edge_ratio > 1.0 && isfinite(p->max_edge_ratio)) ||
+        !(p->max_angle_deg >= 60.0 && p->max_angle_deg <= 180.0) ||
+        !(p->normal_angle_deg > 0.0 && p->normal_angle_deg <= 180.0) ||
+        p->max_hole_edges > MAX_HOLE_EDGES)
+        return TESSEL_ERR_INVALID_ARG;
+    return TESSEL_OK;
+}
+
+tessel_status tessel_advancing_front(const tessel_cloud *points,
+                                     const tessel_front_params *params,
+                                     const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                     tessel_front_stats *stats)
+{
+    if (!mesh)
+        return TESSEL_ERR_INVALID_ARG;
+    memset(mesh, 0, sizeof *mesh);
+    if (stats)
+        memset(stats, 0, sizeof *stats);
+    if (!points || (points->count && !points->xyz))
+        return TESSEL_ERR_INVALID_ARG;
+    tessel_front_params p = params ? *params : tessel_front_params_default();
+    tessel_status st = check_params(&p);
+    if (st)
+        return st;
+    if (points->count < 3)
+        return TESSEL_ERR_TOO_FEW_POINTS;
+    if (points->count >= (size_t)UINT32_MAX / 3)
+        return TESSEL_ERR_LIMIT;
+    for (size_t i = 0; i < 3 * points->count; i++)
+        if (!isfinite(points->xyz[i]))
+            return TESSEL_ERR_INVALID_ARG;
+
+    af s;
+    memset(&s, 0, sizeof s);
+    s.xyz = points->xyz;
+    s.pnormals = points->normals;
+    s.n = points->count;
+    s.k = p.k < s.n - 1 ? p.k : (uint32_t)(s.n - 1);
+    const double deg = acos(-1.0) / 180.0;
+    s.cos_phi = cos(p.max_angle_deg * deg);
+    s.theta0 = p.theta_deg * deg;
+    s.theta_step = p.theta_step_deg * deg;
+    s.theta_max = 90.0 * deg + s.theta_step;
+    s.cos_theta_max = cos(s.theta_max);
+    s.eps1 = p.max_edge_ratio;
+    s.cos_normal = cos(p.normal_angle_deg * deg);
+    s.cos_closing_fold = cos(CLOSING_FOLD_DEG * deg);
+    s.cos_closing_normal = cos(CLOSING_NORMAL_DEG * deg);
+    s.cos_last_fold = cos(LAST_FOLD_DEG * deg);
+    s.max_hole_edges = p.max_hole_edges;
+
+    if ((st = tsl_progress(callbacks, "front", 0.0)))
+        return st;
+    if ((st = prepare_neighbours(&s, p.threads)))
+        goto fail;
+
+    size_t cap = 2 * s.n + 16;
+    s.cap_t = cap;
+    s.tri = tsl_alloc_array(3 * cap, sizeof *s.tri);
+    s.ti = tsl_alloc_array(cap, sizeof *s.ti);
+    s.cnext = tsl_alloc_array(3 * cap, sizeof *s.cnext);
+    s.vhead = tsl_alloc_array(s.n, sizeof *s.vhead);
+    s.vin = tsl_alloc_array(s.n, sizeof *s.vin);
+    s.vout = tsl_alloc_array(s.n, sizeof *s.vout);
+    st = TESSEL_ERR_NOMEM;
+    if (!s.tri || !s.ti || !s.cnext || !s.vhead || !s.vin || !s.vout)
+        goto fail;
+    for (size_t i = 0; i < s.n; i++)
+        s.vhead[i] = s.vin[i] = s.vout[i] = NONE;
+
+    /* Grid cells about two typical edges wide. */
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double mean_nn = 0.0;
+    size_t counted = 0;
+    for (size_t i = 0; i < s.n; i++) {
+        for (int c = 0; c < 3; c++) {
+            lo[c] = dmin(lo[c], s.xyz[3 * i + c]);
+            hi[c] = dmax(hi[c], s.xyz[3 * i + c]);
+        }
+        if (isfinite(s.nnd[i])) {
+            mean_nn += s.nnd[i];
+            counted++;
+        }
+    }
+    mean_nn = counted ? mean_nn / (double)counted : 1.0;
+    if ((st = tsl_trigrid_init(&s.grid, lo, hi, 3.0 * mean_nn)))
+        goto fail;
+
+    if ((st = run_fronts(&s, callbacks)))
+        goto fail;
+    if (p.orient && (st = orient_components(&s)))
+        goto fail;
+
+    int with_normals = points->normals != NULL, with_rgb = points->rgb != NULL;
+    if ((st = tessel_mesh_alloc(mesh, s.n, s.nt, with_normals, with_rgb)))
+        goto fail;
+    memcpy(mesh->xyz, s.xyz, s.n * 3 * sizeof *mesh->xyz);
+    if (with_normals)
+        memcpy(mesh->normals, points->normals, s.n * 3 * sizeof *mesh->normals);
+    if (with_rgb)
+        memcpy(mesh->rgb, points->rgb, s.n * 3 * sizeof *mesh->rgb);
+    for (int c = 0; c < 3; c++)
+        mesh->offset[c] = points->offset[c];
+    memcpy(mesh->triangles, s.tri, s.nt * 3 * sizeof *mesh->triangles);
+
+    s.stats.triangles = s.nt;
+    for (size_t i = 0; i < s.ne; i++)
+        if (s.e[i].state != EDGE_CLOSED)
+            s.stats.border_edges++;
+    s.stats.unused_points = s.n - s.used;
+    if (stats)
+        *stats = s.stats;
+    af_free(&s);
+    st = tsl_progress(callbacks, "front", 1.0);
+    if (st)
+        tessel_mesh_free(mesh);
+    return st;
+fail:
+    af_free(&s);
+    tessel_mesh_free(mesh);
+    return st;
+}

@@ -1,0 +1,298 @@
+/* Advancing-front triangulation (src/advancing_front.c) on clean analytic
+ * samples: a sphere and a torus must come out closed, manifold, outward and
+ * with the right Euler characteristic; a disc with exactly one border loop;
+ * two close parallel sheets as two components; every result free of
+ * self-intersections (exact check). Also the exact triangle test against
+ * hand-made cases, permutation of the input, duplicates and bad input. */
+#include "test.h"
+
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const double PI = 3.14159265358979323846;
+
+/* Deterministic uniform numbers in [0, 1). */
+static double rnd(uint64_t *state)
+{
+    *state = *state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return (double)(*state >> 11) / 9007199254740992.0;
+}
+
+static tessel_cloud make_cloud(size_t n)
+{
+    tessel_cloud c;
+    CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+    return c;
+}
+
+/* Fibonacci sphere of radius 1: even spacing. */
+static tessel_cloud sphere(size_t n)
+{
+    tessel_cloud c = make_cloud(n);
+    double ga = PI * (3.0 - sqrt(5.0));
+    for (size_t i = 0; i < n; i++) {
+        double z = 1.0 - 2.0 * ((double)i + 0.5) / (double)n;
+        double r = sqrt(1.0 - z * z), th = ga * (double)i;
+        c.xyz[3 * i] = (float)(r * cos(th));
+        c.xyz[3 * i + 1] = (float)(r * sin(th));
+        c.xyz[3 * i + 2] = (float)z;
+    }
+    return c;
+}
+
+/* Torus R = 1, r = 0.4 on a jittered (u, v) grid with rows scaled by the
+ * local circumference, so spacing is about even. */
+static tessel_cloud torus(size_t rows, uint64_t seed)
+{
+    const double R = 1.0, r = 0.4;
+    size_t cap = 0;
+    double spacing = 2.0 * PI * r / (double)rows;
+    for (size_t j = 0; j < rows; j++) {
+        double v = 2.0 * PI * (double)j / (double)rows;
+        cap += (size_t)(2.0 * PI * (R + r * cos(v)) / spacing);
+    }
+    tessel_cloud c = make_cloud(cap);
+    size_t m = 0;
+    for (size_t j = 0; j < rows; j++) {
+        double v0 = 2.0 * PI * (double)j / (double)rows;
+        size_t cols = (size_t)(2.0 * PI * (R + r * cos(v0)) / spacing);
+        for (size_t i = 0; i < cols && m < cap; i++) {
+            double v = v0 + 0.3 * (rnd(&seed) - 0.5) * 2.0 * PI / (double)rows;
+            double u = 2.0 * PI * ((double)i + 0.5 * (double)(j % 2) +
+                                   0.3 * (rnd(&seed) - 0.5)) / (double)cols;
+            c.xyz[3 * m] = (float)((R + r * cos(v)) * cos(u));
+            c.xyz[3 * m + 1] = (float)((R + r * cos(v)) * sin(u));
+            c.xyz[3 * m + 2] = (float)(r * sin(v));
+            m++;
+        }
+    }
+    c.count = m;
+    return c;
+}
+
+/* Jittered hexagonal grid in the square [-1,1]^2 at height z (disc: keep
+ * radius < 1). Exactly planar, the hardest case for exact tests. */
+static size_t sheet(float *xyz, size_t cap, double h, double z, int disc, uint64_t *seed)
+{
+    size_t m = 0;
+    double dy = h * sqrt(3.0) / 2.0;
+    for (double y = -1.0; y <= 1.0; y += dy) {
+        int row = (int)floor((y + 1.0) / dy + 0.5);
+        for (double x = -1.0 + (row % 2) * h / 2.0; x <= 1.0; x += h) {
+            double px = x + 0.2 * h * (rnd(seed) - 0.5);
+            double py = y + 0.2 * h * (rnd(seed) - 0.5);
+            if (disc && px * px + py * py > 1.0)
+                continue;
+            if (m < cap) {
+                xyz[3 * m] = (float)px;
+                xyz[3 * m + 1] = (float)py;
+                xyz[3 * m + 2] = (float)z;
+            }
+            m++;
+        }
+    }
+    return m;
+}
+
+typedef struct topo {
+    size_t edges, boundary_edges, nonmanifold_edges, misoriented_edges;
+    size_t bad_border_vertices, used_vertices;
+    long euler;
+} topo;
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Topology counted independently of the library: directed edges sorted by
+ * their undirected key. A vertex of a manifold has 0 or 2 border edges. */
+static topo count_topology(const tessel_mesh *m)
+{
+    topo r;
+    memset(&r, 0, sizeof r);
+    size_t nt = m->triangle_count, nv = m->vertex_count;
+    uint64_t *keys = malloc(3 * nt * sizeof *keys);
+    size_t *bnd = calloc(nv, sizeof *bnd);
+    size_t *deg = calloc(nv, sizeof *deg);
+    for (size_t t = 0; t < nt; t++)
+        for (int i = 0; i < 3; i++) {
+            uint64_t a = m->triangles[3 * t + i], b = m->triangles[3 * t + (i + 1) % 3];
+            uint64_t lo = a < b ? a : b, hi = a < b ? b : a;
+            keys[3 * t + i] = (lo << 33) | (hi << 1) | (a < b ? 0 : 1);
+            deg[a]++;
+        }
+    qsort(keys, 3 * nt, sizeof *keys, cmp_u64);
+    for (size_t i = 0; i < 3 * nt;) {
+        size_t j = i;
+        while (j < 3 * nt && keys[j] >> 1 == keys[i] >> 1)
+            j++;
+        r.edges++;
+        if (j - i == 1) {
+            r.boundary_edges++;
+            bnd[keys[i] >> 33]++;
+            bnd[(keys[i] >> 1) & 0xFFFFFFFFu]++;
+        } else if (j - i > 2) {
+            r.nonmanifold_edges++;
+        } else if ((keys[i] & 1) == (keys[i + 1] & 1)) {
+            r.misoriented_edges++;
+        }
+        i = j;
+    }
+    for (size_t v = 0; v < nv; v++)
+        if (deg[v]) {
+            r.used_vertices++;
+            if (bnd[v] != 0 && bnd[v] != 2)
+                r.bad_border_vertices++;
+        }
+    r.euler = (long)r.used_vertices - (long)r.edges + (long)nt;
+    free(keys);
+    free(bnd);
+    free(deg);
+    return r;
+}
+
+static tessel_mesh_report check_mesh(const tessel_mesh *m, const tessel_cloud *input)
+{
+    tessel_check_params cp = tessel_check_params_default();
+    cp.input = input;
+    tessel_mesh_report rep;
+    CHECK(tessel_mesh_check(m, &cp, &rep) == TESSEL_OK);
+    return rep;
+}
+
+static double signed_volume(const tessel_mesh *m)
+{
+    double v = 0.0;
+    for (size_t t = 0; t < m->triangle_count; t++) {
+        const float *a = m->xyz + 3 * m->triangles[3 * t];
+        const float *b = m->xyz + 3 * m->triangles[3 * t + 1];
+        const float *c = m->xyz + 3 * m->triangles[3 * t + 2];
+        v += (a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) +
+              a[1] * ((double)b[2] * c[0] - (double)b[0] * c[2]) +
+              a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0])) /
+             6.0;
+    }
+    return v;
+}
+
+static void test_sphere(void)
+{
+    tessel_cloud c = sphere(4000);
+    tessel_mesh m;
+    tessel_front_stats st;
+    CHECK(tessel_advancing_front(&c, NULL, NULL, &m, &st) == TESSEL_OK);
+    topo tp = count_topology(&m);
+    tessel_mesh_report rep = check_mesh(&m, &c);
+    CHECK_MSG(tp.boundary_edges == 0, "sphere: %zu boundary edges", tp.boundary_edges);
+    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
+    CHECK_MSG(tp.euler == 2, "sphere: euler %ld", tp.euler);
+    CHECK(tp.used_vertices == c.count);
+    CHECK(m.triangle_count == 2 * c.count - 4);
+    CHECK(tessel_mesh_report_valid(&rep));
+    CHECK_MSG(rep.self_intersections == 0, "%zu", rep.self_intersections);
+    CHECK(rep.nonmanifold_vertices == 0 && rep.components == 1);
+    /* Outward: positive volume close to the ball's 4/3 pi. */
+    double vol = signed_volume(&m);
+    CHECK_MSG(vol > 0.99 * 4.0 / 3.0 * PI && vol < 4.0 / 3.0 * PI, "volume %g", vol);
+    CHECK(st.triangles == m.triangle_count && st.border_edges == 0);
+    printf("sphere: %zu triangles, %zu seeds, %zu bridges, min angle %.1f\n",
+           m.triangle_count, st.seeds, st.bridges, rep.min_angle_deg);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+static void test_torus(void)
+{
+    tessel_cloud c = torus(40, 7);
+    tessel_mesh m;
+    tessel_front_stats st;
+    CHECK(tessel_advancing_front(&c, NULL, NULL, &m, &st) == TESSEL_OK);
+    topo tp = count_topology(&m);
+    tessel_mesh_report rep = check_mesh(&m, &c);
+    CHECK_MSG(tp.boundary_edges == 0, "torus: %zu boundary edges", tp.boundary_edges);
+    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
+    CHECK_MSG(tp.euler == 0, "torus: euler %ld", tp.euler);
+    CHECK(tessel_mesh_report_valid(&rep));
+    CHECK(rep.self_intersections == 0 && rep.components == 1 && rep.genus == 1);
+    CHECK(signed_volume(&m) > 0.0);
+    CHECK(st.bridges >= 1); /* a genus-1 surface needs joins of borders */
+    printf("torus: %zu points, %zu triangles, %zu seeds, %zu bridges\n", c.count,
+           m.triangle_count, st.seeds, st.bridges);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+static void test_disc(void)
+{
+    uint64_t seed = 3;
+    size_t n = sheet(NULL, 0, 0.05, 0.0, 1, &seed);
+    tessel_cloud c = make_cloud(n);
+    seed = 3;
+    sheet(c.xyz, n, 0.05, 0.0, 1, &seed);
+    tessel_mesh m;
+    tessel_front_stats st;
+    CHECK(tessel_advancing_front(&c, NULL, NULL, &m, &st) == TESSEL_OK);
+    topo tp = count_topology(&m);
+    tessel_mesh_report rep = check_mesh(&m, &c);
+    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
+    CHECK_MSG(tp.euler == 1, "disc: euler %ld", tp.euler);
+    CHECK(rep.boundary_loops == 1 && rep.components == 1);
+    CHECK(tessel_mesh_report_valid(&rep));
+    CHECK(rep.self_intersections == 0);
+    CHECK(tp.used_vertices == c.count);
+    /* The border follows the circle: about 2 pi / h edges. */
+    double expect = 2.0 * PI / 0.05;
+    CHECK_MSG(tp.boundary_edges > 0.6 * expect && tp.boundary_edges < 1.5 * expect,
+              "disc border %zu edges", tp.boundary_edges);
+    printf("disc: %zu points, %zu triangles, %zu border edges\n", c.count, m.triangle_count,
+           tp.boundary_edges);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+static void test_two_sheets(void)
+{
+    /* Spacing 0.05, sheets 0.25 apart: far beyond eps1 times the spacing,
+     * close enough that their triangles' boxes meet in the grid. */
+    uint64_t seed = 11;
+    size_t n1 = sheet(NULL, 0, 0.05, 0.0, 0, &seed);
+    size_t n2 = sheet(NULL, 0, 0.05, 0.25, 0, &seed);
+    tessel_cloud c = make_cloud(n1 + n2);
+    seed = 11;
+    sheet(c.xyz, n1, 0.05, 0.0, 0, &seed);
+    sheet(c.xyz + 3 * n1, n2, 0.05, 0.25, 0, &seed);
+    tessel_mesh m;
+    CHECK(tessel_advancing_front(&c, NULL, NULL, &m, NULL) == TESSEL_OK);
+    topo tp = count_topology(&m);
+    tessel_mesh_report rep = check_mesh(&m, &c);
+    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
+    CHECK_MSG(rep.components == 2 && rep.boundary_loops == 2, "%zu components %zu loops",
+              rep.components, rep.boundary_loops);
+    CHECK(tp.euler == 2);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+    /* No triangle spans the two sheets. */
+    size_t spanning = 0;
+    for (size_t t = 0; t < m.triangle_count; t++) {
+        float z0 = m.xyz[3 * m.triangles[3 * t] + 2];
+        for (int i = 1; i < 3; i++)
+            if (m.xyz[3 * m.triangles[3 * t + i] + 2] != z0)
+                spanning++;
+    }
+    CHECK(spanning == 0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+int main(void)
+{
+    test_sphere();
+    test_torus();
+    test_disc();
+    test_two_sheets();
+    return TEST_SUMMARY();
+}
