@@ -1,0 +1,1808 @@
+/* Fixed-plane reconstruction: height fields, range scans, organized grids.
+ *
+ * Gopi & Krishnan 2002, section 5 ("Triangulating terrain data") and 5.1:
+ * when the data are a height field or come from a scanner with one centre
+ * of projection, the projection plane of the general method is fixed, the
+ * dexel array becomes two-dimensional with one representative point per
+ * dexel, the neighbours of a point come only from adjacent dexels, the
+ * sphere of influence is set slightly above the noise level, and the
+ * visibility and angle tests are dropped because every candidate is
+ * visible. Noise, being mostly along the projection direction, no longer
+ * disturbs the triangulation (section 5, and 6.1 on fixed planes).
+ *
+ * Three ways to get the dexel array, one triangulator:
+ *   height  the cloud is projected on a plane (least variance, or normal to
+ *           an axis); square dexels; representative = the point at the
+ *           dexel's median height.
+ *   range   directions from the viewpoint in (theta, phi) about a pole axis;
+ *           representative = the point at the dexel's median range.
+ *   grid    the organized cloud's own grid, every point its own dexel.
+ * The triangulator walks the 2x2 blocks of adjacent dexels, joins the
+ * shorter diagonal, keeps a triangle when its three edges pass the
+ * sphere-of-influence test (see tessel.h) and it is not flipped seen along
+ * the projection direction, then removes the few triangles that would make
+ * a vertex non-manifold (two fans touching at one vertex) and streams the
+ * rest in row order. Orientation comes from the array's parametrization,
+ * so it is consistent by construction.
+ */
+#include "internal.h"
+
+#include <float.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#define FP_PI 3.14159265358979323846
+
+/* Points sampled for the frame (PCA), the automatic cell and the noise. */
+#define FP_SAMPLE 65536u
+/* Triangles per sink call. */
+#define FP_BATCH 16384u
+/* Rows per parallel block (progress is reported between blocks). */
+#define FP_BLOCK_ROWS 64u
+
+static double fp_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+tessel_fixed_plane_params tessel_fixed_plane_params_default(void)
+{
+    tessel_fixed_plane_params p;
+    memset(&p, 0, sizeof p);
+    p.mode = TESSEL_FIXED_PLANE_HEIGHT;
+    p.axis = -1;
+    p.columns = 0;
+    p.rows = 0;
+    p.cell = 0.0;
+    p.points_per_dexel = 3.0;
+    p.use_viewpoint = 0;
+    p.max_angle = 80.0;
+    p.noise = 0.0;
+    p.noise_factor = 6.0;
+    p.threads = 0;
+    return p;
+}
+
+/* ------------------------------------------------------------------------ */
+/* The dexel array and the edge test                                         */
+/* ------------------------------------------------------------------------ */
+
+enum { FP_PLANE = 0, FP_RAY = 1 };
+
+typedef struct fp_ctx {
+    const float *xyz;
+    uint32_t w, h;           /* array columns, rows */
+    const uint32_t *idx;     /* w*h point indices or TESSEL_NONE */
+    int wrap_c, wrap_r;      /* last column (row) adjacent to the first */
+    uint32_t cw, ch;         /* blocks per row, block rows */
+    int kind;                /* FP_PLANE or FP_RAY */
+    float dir[3];            /* FP_PLANE: unit normal of the plane */
+    float vp[3];             /* FP_RAY: viewpoint in the local frame */
+    float reach2;            /* 1 / cos^2(max_angle) */
+    float margin2;
+    int orient;              /* sign of the facing test for (A, B, D) order */
+    int threads;
+} fp_ctx;
+
+/* One array entry with what the edge test needs. */
+typedef struct fp_vrec {
+    float p[3];
+    float d[3];              /* FP_RAY: unit direction from the viewpoint */
+    float w;                 /* FP_PLANE: height; FP_RAY: range */
+    uint32_t ok;             /* a usable point */
+} fp_vrec;
+
+static void fp_row(const fp_ctx *x, uint32_t r, fp_vrec *out)
+{
+    const uint32_t *row = x->idx + (size_t)r * x->w;
+    for (uint32_t c = 0; c < x->w; c++) {
+        fp_vrec *v = &out[c];
+        uint32_t i = row[c];
+        v->ok = 0;
+        if (i == TESSEL_NONE)
+            continue;
+        const float *p = x->xyz + 3 * (size_t)i;
+        v->p[0] = p[0];
+        v->p[1] = p[1];
+        v->p[2] = p[2];
+        if (x->kind == FP_RAY) {
+            float dx = p[0] - x->vp[0], dy = p[1] - x->vp[1], dz = p[2] - x->vp[2];
+            float rng = sqrtf(dx * dx + dy * dy + dz * dz);
+            if (!(rng > 0.0f) || !(rng < FLT_MAX))
+                continue;
+            float inv = 1.0f / rng;
+            v->d[0] = dx * inv;
+            v->d[1] = dy * inv;
+            v->d[2] = dz * inv;
+            v->w = rng;
+        } else {
+            float hgt = x->dir[0] * p[0] + x->dir[1] * p[1] + x->dir[2] * p[2];
+            if (!(fabsf(hgt) < FLT_MAX))
+                continue;
+            v->w = hgt;
+        }
+        v->ok = 1;
+    }
+}
+
+/* The sphere-of-influence test of tessel.h; both entries valid. Writes the
+ * squared length. */
+static inline int fp_edge(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b, float *len2)
+{
+    float dx = a->p[0] - b->p[0], dy = a->p[1] - b->p[1], dz = a->p[2] - b->p[2];
+    float l2 = dx * dx + dy * dy + dz * dz;
+    float s2;
+    if (x->kind == FP_RAY) {
+        float ex = a->d[0] - b->d[0], ey = a->d[1] - b->d[1], ez = a->d[2] - b->d[2];
+        float rm = a->w < b->w ? a->w : b->w;
+        s2 = rm * rm * (ex * ex + ey * ey + ez * ez);
+    } else {
+        float dh = a->w - b->w;
+        s2 = l2 - dh * dh;
+    }
+    *len2 = l2;
+    return l2 <= x->reach2 * s2 + x->margin2;
+}
+
+/* A triangle (in the array's counter-clockwise order) is kept when it
+ * faces the expected way seen along the projection direction; zero area
+ * (exactly, from float inputs) counts as flipped. */
+static inline int fp_facing(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b,
+                            const fp_vrec *c)
+{
+    double e1[3] = {(double)b->p[0] - a->p[0], (double)b->p[1] - a->p[1],
+                    (double)b->p[2] - a->p[2]};
+    double e2[3] = {(double)c->p[0] - a->p[0], (double)c->p[1] - a->p[1],
+                    (double)c->p[2] - a->p[2]};
+    double n[3];
+    tsl_cross(e1, e2, n);
+    if (n[0] == 0.0 && n[1] == 0.0 && n[2] == 0.0)
+        return 0;
+    double s;
+    if (x->kind == FP_RAY)
+        s = n[0] * ((double)x->vp[0] - a->p[0]) + n[1] * ((double)x->vp[1] - a->p[1]) +
+            n[2] * ((double)x->vp[2] - a->p[2]);
+    else
+        s = n[0] * x->dir[0] + n[1] * x->dir[1] + n[2] * x->dir[2];
+    return x->orient > 0 ? s > 0.0 : s < 0.0;
+}
+
+/* Block codes: bit 0 the diagonal (0: A-D, 1: B-C), bit 1 triangle t0,
+ * bit 2 triangle t1, with corners A (r, c), B (r, c+1), C (r+1, c),
+ * D (r+1, c+1) and, counter-clockwise in (column, row):
+ *   diagonal A-D: t0 = (A, B, D), t1 = (A, D, C)
+ *   diagonal B-C: t0 = (A, B, C), t1 = (B, D, C). */
+enum { FP_DIAG_BC = 1, FP_T0 = 2, FP_T1 = 4 };
+
+typedef struct fp_counts {
+    size_t missing, open, folded;
+} fp_counts;
+
+static uint8_t fp_block(const fp_ctx *x, const fp_vrec *A, const fp_vrec *B,
+                        const fp_vrec *C, const fp_vrec *D, int ab, int cd, int ac, int bd,
+                        fp_counts *cnt)
+{
+    unsigned have = A->ok + B->ok + C->ok + D->ok;
+    if (have < 3) {
+        cnt->missing++;
+        return 0;
+    }
+    float l_ad = 0, l_bc = 0;
+    unsigned code = 0, want, made = 0, edges_fail = 0;
+    if (have == 4) {
+        int ok_ad = fp_edge(x, A, D, &l_ad), ok_bc = fp_edge(x, B, C, &l_bc);
+        want = 2;
+        /* The shorter diagonal; the other one when it makes more triangles
+         * (a quad that is not convex in projection folds on one diagonal). */
+        unsigned try_first = ok_ad && (!ok_bc || l_ad <= l_bc) ? 0u : 1u;
+        unsigned best_code = 0, best_made = 0, best_fail = 1, best_folded = 0, tried = 0;
+        for (unsigned k = 0; k < 2; k++) {
+            unsigned d = k == 0 ? try_first : 1u - try_first;
+            if (!(d == 0 ? ok_ad : ok_bc))
+                continue;
+            unsigned cc = d, fail = 0, folded = 0;
+            int e0 = d == 0 ? ab && bd : ab && ac;
+            int e1 = d == 0 ? cd && ac : bd && cd;
+            if (e0) {
+                if (d == 0 ? fp_facing(x, A, B, D) : fp_facing(x, A, B, C))
+                    cc |= FP_T0;
+                else
+                    folded++;
+            }
+            if (e1) {
+                if (d == 0 ? fp_facing(x, A, D, C) : fp_facing(x, B, D, C))
+                    cc |= FP_T1;
+                else
+                    folded++;
+            }
+            fail = !e0 || !e1;
+            unsigned nm = ((cc & FP_T0) != 0) + ((cc & FP_T1) != 0);
+            if (!tried++ || nm > best_made) {
+                best_code = cc;
+                best_made = nm;
+                best_fail = fail;
+                best_folded = folded;
+            }
+            if (nm == 2)
+                break;
+        }
+        code = best_code;
+        edges_fail = best_fail;
+        cnt->folded += best_folded;
+    } else {
+        want = 1;
+        int e;
+        if (!D->ok) {
+            code = FP_DIAG_BC;
+            e = ab && ac && fp_edge(x, B, C, &l_bc);
+            if (e && fp_facing(x, A, B, C))
+                code |= FP_T0;
+            else if (e)
+                cnt->folded++;
+        } else if (!A->ok) {
+            code = FP_DIAG_BC;
+            e = bd && cd && fp_edge(x, B, C, &l_bc);
+            if (e && fp_facing(x, B, D, C))
+                code |= FP_T1;
+            else if (e)
+                cnt->folded++;
+        } else if (!B->ok) {
+            e = cd && ac && fp_edge(x, A, D, &l_ad);
+            if (e && fp_facing(x, A, D, C))
+                code |= FP_T1;
+            else if (e)
+                cnt->folded++;
+        } else {
+            e = ab && bd && fp_edge(x, A, D, &l_ad);
+            if (e && fp_facing(x, A, B, D))
+                code |= FP_T0;
+            else if (e)
+                cnt->folded++;
+        }
+        edges_fail = !e;
+    }
+    made = ((code & FP_T0) != 0) + ((code & FP_T1) != 0);
+    if (edges_fail && made < want)
+        cnt->open++;
+    return (uint8_t)code;
+}
+
+/* Codes of block rows [r0, r1), computing each array row once. */
+static void fp_codes_rows(const fp_ctx *x, uint32_t r0, uint32_t r1, uint8_t *codes,
+                          fp_vrec *rec0, fp_vrec *rec1, uint8_t *h0, uint8_t *h1,
+                          uint8_t *vf, fp_counts *cnt)
+{
+    const uint32_t w = x->w, cw = x->cw;
+    float l2;
+    fp_row(x, r0, rec0);
+    for (uint32_t c = 0; c < cw; c++) {
+        uint32_t cn = c + 1 == w ? 0 : c + 1;
+        h0[c] = (uint8_t)(rec0[c].ok && rec0[cn].ok && fp_edge(x, &rec0[c], &rec0[cn], &l2));
+    }
+    for (uint32_t r = r0; r < r1; r++) {
+        uint32_t rn = r + 1 == x->h ? 0 : r + 1;
+        fp_row(x, rn, rec1);
+        for (uint32_t c = 0; c < cw; c++) {
+            uint32_t cn = c + 1 == w ? 0 : c + 1;
+            h1[c] = (uint8_t)(rec1[c].ok && rec1[cn].ok &&
+                              fp_edge(x, &rec1[c], &rec1[cn], &l2));
+        }
+        for (uint32_t c = 0; c < w; c++)
+            vf[c] = (uint8_t)(rec0[c].ok && rec1[c].ok && fp_edge(x, &rec0[c], &rec1[c], &l2));
+        uint8_t *out = codes + (size_t)r * cw;
+        for (uint32_t c = 0; c < cw; c++) {
+            uint32_t cn = c + 1 == w ? 0 : c + 1;
+            out[c] = fp_block(x, &rec0[c], &rec0[cn], &rec1[c], &rec1[cn], h0[c], h1[c],
+                              vf[c], vf[cn], cnt);
+        }
+        fp_vrec *tr = rec0;
+        rec0 = rec1;
+        rec1 = tr;
+        uint8_t *th = h0;
+        h0 = h1;
+        h1 = th;
+    }
+}
+
+/* ------------------------------------------------------------------------ */
+/* Vertex manifoldness                                                       */
+/* ------------------------------------------------------------------------ */
+
+/* The link of a vertex runs through its 8 array neighbours E, SE, S, SW, W,
+ * NW, N, NE (positions 0..7, rows growing "south"); segment k joins
+ * positions k and k+1. The four blocks around the vertex are quadrant
+ * q = 0 (block to the SE, the vertex is its A corner), 1 (SW, B corner),
+ * 2 (NW, D corner), 3 (NE, C corner); quadrant q covers segments 2q and
+ * 2q+1. fp_seg[q][t][diag] is the 2-bit set of those segments that
+ * triangle t (0: t0, 1: t1) of a block with that diagonal covers. */
+static const uint8_t fp_seg[4][2][2] = {
+    /* A corner: AD: t0 B-D (seg 0), t1 D-C (seg 1); BC: t0 B-C (both) */
+    {{1, 2}, {3, 0}},
+    /* B corner: AD: t0 A-D (both); BC: t0 A-C (seg 3), t1 D-C (seg 2) */
+    {{3, 0}, {2, 1}},
+    /* D corner: AD: t0 A-B (seg 5), t1 A-C (seg 4); BC: t1 B-C (both) */
+    {{2, 1}, {0, 3}},
+    /* C corner: AD: t1 A-D (both); BC: t0 A-B (seg 6), t1 B-D (seg 7) */
+    {{0, 3}, {1, 2}},
+};
+
+/* Block (row, column) of quadrant q of vertex (r, c), or SIZE_MAX. */
+static size_t fp_quad_block(const fp_ctx *x, uint32_t r, uint32_t c, int q)
+{
+    int64_t br = (q == 0 || q == 1) ? (int64_t)r : (int64_t)r - 1;
+    int64_t bc = (q == 0 || q == 3) ? (int64_t)c : (int64_t)c - 1;
+    if (br < 0) {
+        if (!x->wrap_r)
+            return SIZE_MAX;
+        br += x->h;
+    }
+    if (bc < 0) {
+        if (!x->wrap_c)
+            return SIZE_MAX;
+        bc += x->w;
+    }
+    if ((uint64_t)br >= x->ch || (uint64_t)bc >= x->cw)
+        return SIZE_MAX;
+    return (size_t)br * x->cw + (size_t)bc;
+}
+
+static unsigned fp_link_mask(const fp_ctx *x, const uint8_t *codes, uint32_t r, uint32_t c)
+{
+    unsigned m = 0;
+    for (int q = 0; q < 4; q++) {
+        size_t b = fp_quad_block(x, r, c, q);
+        if (b == SIZE_MAX)
+            continue;
+        unsigned code = codes[b], diag = code & 1;
+        if (code & FP_T0)
+            m |= (unsigned)fp_seg[q][diag][0] << (2 * q);
+        if (code & FP_T1)
+            m |= (unsigned)fp_seg[q][diag][1] << (2 * q);
+    }
+    return m;
+}
+
+static unsigned fp_rotl8(unsigned m) { return ((m << 1) | (m >> 7)) & 0xffu; }
+
+/* Number of separate fans in a link mask. */
+static int fp_fans(unsigned m)
+{
+    if (m == 0xffu)
+        return 1;
+    unsigned starts = m & ~fp_rotl8(m);
+    int n = 0;
+    for (; starts; starts &= starts - 1)
+        n++;
+    return n;
+}
+
+typedef struct fp_stack {
+    uint64_t *v;
+    size_t n, cap;
+} fp_stack;
+
+/* The vertex of corner k (0 A, 1 B, 2 C, 3 D) of block b. */
+static uint64_t fp_corner(const fp_ctx *x, size_t b, int k)
+{
+    uint32_t r = (uint32_t)(b / x->cw), c = (uint32_t)(b % x->cw);
+    if (k & 1)
+        c = c + 1 == x->w ? 0 : c + 1;
+    if (k & 2)
+        r = r + 1 == x->h ? 0 : r + 1;
+    return (uint64_t)r * x->w + c;
+}
+
+/* Corners of the triangles: [diag][t] -> three corner numbers. */
+static const int fp_tri_corners[2][2][3] = {
+    {{0, 1, 3}, {0, 3, 2}},
+    {{0, 1, 2}, {1, 3, 2}},
+};
+
+/* Keeps the largest fan of vertex (r, c) (ties: the first from E going
+ * round), removes the triangles of the others and pushes their other
+ * vertices, which may have lost their own single fan. */
+static tessel_status fp_fix_vertex(const fp_ctx *x, uint8_t *codes, uint32_t r, uint32_t c,
+                                   fp_stack *st, size_t *removed)
+{
+    unsigned m = fp_link_mask(x, codes, r, c);
+    if (fp_fans(m) < 2)
+        return TESSEL_OK;
+    unsigned starts = m & ~fp_rotl8(m), keep = 0;
+    int best = -1;
+    for (int s = 0; s < 8; s++) {
+        if (!(starts >> s & 1u))
+            continue;
+        unsigned run = 0;
+        int len = 0;
+        for (int k = s; (m >> (k & 7) & 1u) && len < 8; k++, len++)
+            run |= 1u << (k & 7);
+        if (len > best) {
+            best = len;
+            keep = run;
+        }
+    }
+    unsigned drop = m & ~keep;
+    uint64_t self = (uint64_t)r * x->w + c;
+    for (int q = 0; q < 4; q++) {
+        unsigned local = (drop >> (2 * q)) & 3u;
+        if (!local)
+            continue;
+        size_t b = fp_quad_block(x, r, c, q);
+        unsigned code = codes[b], diag = code & 1;
+        for (int t = 0; t < 2; t++) {
+            unsigned bit = t ? FP_T1 : FP_T0;
+            if (!(code & bit) || !(fp_seg[q][diag][t] & local))
+                continue;
+            code &= ~bit;
+            (*removed)++;
+            for (int k = 0; k < 3; k++) {
+                uint64_t v = fp_corner(x, b, fp_tri_corners[diag][t][k]);
+                if (v == self)
+                    continue;
+                if (tsl_grow((void **)&st->v, &st->cap, st->n + 1, sizeof *st->v) != TESSEL_OK)
+                    return TESSEL_ERR_NOMEM;
+                st->v[st->n++] = v;
+            }
+        }
+        codes[b] = (uint8_t)code;
+    }
+    return TESSEL_OK;
+}
+
+static tessel_status fp_make_manifold(const fp_ctx *x, uint8_t *codes, size_t *removed)
+{
+    uint8_t *bad = tsl_calloc_array(x->h, 1);
+    if (!bad)
+        return TESSEL_ERR_NOMEM;
+    int nt = x->threads;
+    (void)nt;
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (int64_t r = 0; r < (int64_t)x->h; r++) {
+        for (uint32_t c = 0; c < x->w; c++) {
+            if (fp_fans(fp_link_mask(x, codes, (uint32_t)r, c)) > 1) {
+                bad[r] = 1;
+                break;
+            }
+        }
+    }
+    /* Fixes in raster order, each followed by its cascade: the result does
+     * not depend on the thread count. */
+    fp_stack st = {NULL, 0, 0};
+    tessel_status status = TESSEL_OK;
+    for (uint32_t r = 0; r < x->h && status == TESSEL_OK; r++) {
+        if (!bad[r])
+            continue;
+        for (uint32_t c = 0; c < x->w && status == TESSEL_OK; c++) {
+            status = fp_fix_vertex(x, codes, r, c, &st, removed);
+            while (status == TESSEL_OK && st.n > 0) {
+                uint64_t v = st.v[--st.n];
+                status = fp_fix_vertex(x, codes, (uint32_t)(v / x->w), (uint32_t)(v % x->w),
+                                       &st, removed);
+            }
+        }
+    }
+    free(st.v);
+    free(bad);
+    return status;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Filled dexels: no overlap in projection                                   */
+/* ------------------------------------------------------------------------ */
+
+/* 2D coordinates of a point seen along the projection direction: the
+ * plane coordinates (height), or the gnomonic projection about the
+ * direction axis (ray), which maps the straight edges of triangles seen
+ * from the viewpoint to straight lines. */
+typedef struct fp_proj {
+    double o[3], e1[3], e2[3], ax[3];
+    int ray;
+} fp_proj;
+
+static void fp_project(const fp_proj *pr, const float *p, double out[2])
+{
+    double d[3] = {p[0] - pr->o[0], p[1] - pr->o[1], p[2] - pr->o[2]};
+    double a = tsl_dot(d, pr->e1), b = tsl_dot(d, pr->e2);
+    if (pr->ray) {
+        double z = tsl_dot(d, pr->ax);
+        z = z > 1e-30 ? z : 1e-30;
+        a /= z;
+        b /= z;
+    }
+    out[0] = a;
+    out[1] = b;
+}
+
+/* Interiors of two counter-clockwise triangles overlap: no edge of either
+ * separates them (touching along shared vertices or edges is allowed). */
+static int fp_overlap2(const double a[3][2], const double b[3][2])
+{
+    for (int pass = 0; pass < 2; pass++) {
+        const double(*p)[2] = pass ? b : a, (*q)[2] = pass ? a : b;
+        double scale = 0;
+        for (int k = 0; k < 3; k++)
+            scale = fmax(scale, fmax(fabs(p[k][0]), fabs(p[k][1])));
+        for (int k = 0; k < 3; k++) {
+            const double *u = p[k], *v = p[(k + 1) % 3];
+            double nx = v[1] - u[1], ny = u[0] - v[0]; /* outward normal */
+            double len = fabs(nx) + fabs(ny);
+            double lim = u[0] * nx + u[1] * ny - 1e-12 * len * scale;
+            int sep = 1;
+            for (int j = 0; j < 3 && sep; j++)
+                sep = q[j][0] * nx + q[j][1] * ny >= lim;
+            if (sep)
+                return 0;
+        }
+    }
+    return 1;
+}
+
+/* The triangles of the blocks round each filled dexel that use its point
+ * are dropped when they overlap another triangle in projection. */
+static void fp_untangle(const fp_ctx *x, uint8_t *codes, const uint32_t *slots, size_t n,
+                        size_t *dropped)
+{
+    enum { R = 2, MAXT = 2 * (2 * R + 1) * (2 * R + 1) };
+    for (size_t s = 0; s < n; s++) {
+        uint32_t r = slots[s] / x->w, c = slots[s] % x->w;
+        uint32_t pidx = x->idx[slots[s]];
+        fp_proj pr;
+        memset(&pr, 0, sizeof pr);
+        const float *pp = x->xyz + 3 * (size_t)pidx;
+        double ax[3];
+        if (x->kind == FP_RAY) {
+            pr.ray = 1;
+            for (int k = 0; k < 3; k++) {
+                pr.o[k] = x->vp[k];
+                ax[k] = pp[k] - x->vp[k];
+            }
+        } else {
+            for (int k = 0; k < 3; k++)
+                ax[k] = x->dir[k];
+        }
+        if (!tsl_normalize(ax))
+            continue;
+        memcpy(pr.ax, ax, sizeof ax);
+        double t[3] = {1, 0, 0};
+        if (fabs(ax[0]) > 0.6)
+            t[0] = 0, t[1] = 1;
+        tsl_cross(ax, t, pr.e2);
+        tsl_normalize(pr.e2);
+        tsl_cross(pr.e2, ax, pr.e1); /* e1 x e2 = ax */
+        if (pr.ray) /* counter-clockwise as seen from the viewpoint */
+            for (int k = 0; k < 3; k++)
+                pr.e1[k] = -pr.e1[k];
+        size_t blk[MAXT];
+        int tt[MAXT], mine[MAXT];
+        double pt[MAXT][3][2];
+        int nt = 0;
+        for (int dr = -R; dr <= R; dr++) {
+            for (int dc = -R; dc <= R; dc++) {
+                int64_t br = (int64_t)r + dr, bc = (int64_t)c + dc;
+                if (br < 0 || br >= (int64_t)x->ch)
+                    continue;
+                if (bc < 0 || bc >= (int64_t)x->cw) {
+                    if (!x->wrap_c)
+                        continue;
+                    bc = (bc + (int64_t)x->w) % (int64_t)x->w;
+                }
+                size_t b = (size_t)br * x->cw + (size_t)bc;
+                unsigned code = codes[b];
+                for (int k = 0; k < 2; k++) {
+                    if (!(code & (k ? FP_T1 : FP_T0)))
+                        continue;
+                    blk[nt] = b;
+                    tt[nt] = k;
+                    mine[nt] = 0;
+                    for (int j = 0; j < 3; j++) {
+                        uint64_t v = fp_corner(x, b, fp_tri_corners[code & 1][k][j]);
+                        uint32_t i = x->idx[v];
+                        mine[nt] |= i == pidx;
+                        /* counter-clockwise in the projection */
+                        int jj = x->orient < 0 && j ? 3 - j : j;
+                        fp_project(&pr, x->xyz + 3 * (size_t)i, pt[nt][jj]);
+                    }
+                    nt++;
+                }
+            }
+        }
+        for (int a = 0; a < nt; a++) {
+            if (!mine[a])
+                continue;
+            for (int b = 0; b < nt; b++) {
+                if (b == a || !(codes[blk[b]] & (tt[b] ? FP_T1 : FP_T0)))
+                    continue;
+                if (fp_overlap2(pt[a], pt[b])) {
+                    codes[blk[a]] &= (uint8_t)~(tt[a] ? FP_T1 : FP_T0);
+                    (*dropped)++;
+                    break;
+                }
+            }
+        }
+    }
+}
+
+/* ------------------------------------------------------------------------ */
+/* Noise estimate and orientation                                            */
+/* ------------------------------------------------------------------------ */
+
+/* Puts the k-th smallest of a[0..n) at a[k] (three-way partition: many
+ * equal values, e.g. the zero residuals of clean data, stay linear). */
+static void fp_float_select(float *a, size_t n, size_t k)
+{
+    size_t lo = 0, hi = n;
+    while (hi - lo > 1) {
+        float x0 = a[lo], x1 = a[lo + (hi - lo) / 2], x2 = a[hi - 1];
+        float pivot = x0 < x1 ? (x1 < x2 ? x1 : (x0 < x2 ? x2 : x0))
+                              : (x0 < x2 ? x0 : (x1 < x2 ? x2 : x1));
+        size_t lt = lo, i = lo, gt = hi;
+        while (i < gt) {
+            float v = a[i];
+            if (v < pivot) {
+                a[i++] = a[lt];
+                a[lt++] = v;
+            } else if (v > pivot) {
+                a[i] = a[--gt];
+                a[gt] = v;
+            } else {
+                i++;
+            }
+        }
+        if (k < lt)
+            hi = lt;
+        else if (k >= gt)
+            lo = gt;
+        else
+            return;
+    }
+}
+
+/* Residual of c against the plane through l, r, u, measured along the
+ * projection direction and scaled to the deviation of one point: the
+ * intersection of c's line with the plane is sum(lambda_i p_i), whose
+ * noise adds sum(lambda_i^2) to c's own. Negative when unusable. */
+static double fp_residual(const fp_ctx *x, const fp_vrec *c, const fp_vrec *l,
+                          const fp_vrec *r, const fp_vrec *u)
+{
+    double L[3], e1[3], e2[3], n[3], w[3], lc[3];
+    tsl_load(l->p, L);
+    for (int k = 0; k < 3; k++) {
+        e1[k] = (double)r->p[k] - L[k];
+        e2[k] = (double)u->p[k] - L[k];
+        lc[k] = L[k] - (double)c->p[k];
+        w[k] = x->kind == FP_RAY ? c->d[k] : x->dir[k];
+    }
+    tsl_cross(e1, e2, n);
+    double nn = tsl_dot(n, n), den = tsl_dot(n, w);
+    if (!(nn > 0.0) || fabs(den) < 0.2 * sqrt(nn))
+        return -1.0;
+    double t = tsl_dot(n, lc) / den;
+    double q[3], lq[3], cr[3];
+    for (int k = 0; k < 3; k++) {
+        q[k] = (double)c->p[k] + t * w[k];
+        lq[k] = q[k] - L[k];
+    }
+    tsl_cross(e1, lq, cr);
+    double lu = tsl_dot(cr, n) / nn;
+    tsl_cross(lq, e2, cr);
+    double lr = tsl_dot(cr, n) / nn;
+    double ll = 1.0 - lu - lr;
+    if (ll < -0.5 || ll > 1.5 || lu < -0.5 || lu > 1.5 || lr < -0.5 || lr > 1.5)
+        return -1.0;
+    return fabs(t) / sqrt(1.0 + ll * ll + lu * lu + lr * lr);
+}
+
+/* Robust noise estimate: 1.4826 * median residual over a sample of rows. */
+static tessel_status fp_estimate_noise(const fp_ctx *x, double *sigma)
+{
+    *sigma = 0.0;
+    if (x->w < 3 || x->h < 2)
+        return TESSEL_OK;
+    uint32_t step = 1;
+    while ((uint64_t)(x->h / step) * x->w > (uint64_t)4 * FP_SAMPLE)
+        step++;
+    size_t cap = (size_t)(x->h / step + 1) * x->w;
+    float *res = tsl_alloc_array(cap, sizeof(float));
+    fp_vrec *rows = tsl_alloc_array((size_t)2 * x->w, sizeof(fp_vrec));
+    if (!res || !rows) {
+        free(res);
+        free(rows);
+        return TESSEL_ERR_NOMEM;
+    }
+    size_t n = 0;
+    for (uint32_t r = 1; r < x->h; r += step) {
+        fp_vrec *up = rows, *mid = rows + x->w;
+        fp_row(x, r - 1, up);
+        fp_row(x, r, mid);
+        for (uint32_t c = 1; c + 1 < x->w; c++) {
+            if (!mid[c].ok || !mid[c - 1].ok || !mid[c + 1].ok || !up[c].ok)
+                continue;
+            double d = fp_residual(x, &mid[c], &mid[c - 1], &mid[c + 1], &up[c]);
+            if (d >= 0.0 && n < cap)
+                res[n++] = (float)d;
+        }
+    }
+    if (n >= 8) {
+        fp_float_select(res, n, n / 2);
+        *sigma = 1.4826 * (double)res[n / 2];
+    }
+    free(res);
+    free(rows);
+    return TESSEL_OK;
+}
+
+/* Which way the array's counter-clockwise order faces the viewpoint: a
+ * vote over a sample of complete blocks (ray kind only). */
+static void fp_vote_orientation(fp_ctx *x)
+{
+    x->orient = 1;
+    if (x->kind != FP_RAY || x->ch == 0 || x->cw == 0)
+        return;
+    fp_vrec *rows = tsl_alloc_array((size_t)2 * x->w, sizeof(fp_vrec));
+    if (!rows)
+        return; /* keeps +1; the facing test then drops wrong triangles */
+    uint32_t step = 1;
+    while ((uint64_t)(x->ch / step) * x->cw > (uint64_t)FP_SAMPLE)
+        step++;
+    int64_t vote = 0;
+    fp_ctx probe = *x;
+    for (uint32_t r = 0; r < x->ch; r += step) {
+        fp_vrec *a = rows, *b = rows + x->w;
+        fp_row(x, r, a);
+        fp_row(x, r + 1 == x->h ? 0 : r + 1, b);
+        for (uint32_t c = 0; c < x->cw; c++) {
+            uint32_t cn = c + 1 == x->w ? 0 : c + 1;
+            if (!a[c].ok || !a[cn].ok || !b[cn].ok)
+                continue;
+            probe.orient = 1;
+            if (fp_facing(&probe, &a[c], &a[cn], &b[cn]))
+                vote++;
+            else {
+                probe.orient = -1;
+                if (fp_facing(&probe, &a[c], &a[cn], &b[cn]))
+                    vote--;
+            }
+        }
+    }
+    free(rows);
+    x->orient = vote < 0 ? -1 : 1;
+}
+
+/* Grid mode: the first and last rows (columns) of a full 360 degree scan
+ * are neighbours: their rays are about one step apart. */
+static int fp_detect_wrap(const fp_ctx *x, int along_rows)
+{
+    uint32_t n = along_rows ? x->h : x->w, other = along_rows ? x->w : x->h;
+    if (x->kind != FP_RAY || n < 3 || other == 0)
+        return 0;
+    uint32_t step = other > 512 ? other / 512 : 1;
+    size_t cap = other / step + 1, m = 0;
+    float *wrapd = tsl_alloc_array(cap, sizeof(float));
+    float *stepd = tsl_alloc_array(cap, sizeof(float));
+    int wrap = 0;
+    if (wrapd && stepd) {
+        fp_vrec v[3];
+        fp_ctx one = *x;
+        for (uint32_t k = 0; k < other && m < cap; k += step) {
+            uint32_t pos[3] = {0, 1, n - 1};
+            for (int j = 0; j < 3; j++) {
+                uint32_t i = along_rows ? x->idx[(size_t)pos[j] * x->w + k]
+                                        : x->idx[(size_t)k * x->w + pos[j]];
+                one.idx = &i;
+                one.w = 1;
+                fp_row(&one, 0, &v[j]);
+            }
+            if (!v[0].ok || !v[1].ok || !v[2].ok)
+                continue;
+            float s = 0, t = 0;
+            for (int j = 0; j < 3; j++) {
+                s += (v[0].d[j] - v[1].d[j]) * (v[0].d[j] - v[1].d[j]);
+                t += (v[0].d[j] - v[2].d[j]) * (v[0].d[j] - v[2].d[j]);
+            }
+            stepd[m] = sqrtf(s);
+            wrapd[m] = sqrtf(t);
+            m++;
+        }
+        if (m >= 3) {
+            fp_float_select(stepd, m, m / 2);
+            fp_float_select(wrapd, m, m / 2);
+            float s = stepd[m / 2], t = wrapd[m / 2];
+            wrap = s > 0.0f && t >= 0.5f * s && t <= 1.5f * s;
+        }
+    }
+    free(wrapd);
+    free(stepd);
+    return wrap;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Dexels: bucketing and one representative per dexel                       */
+/* ------------------------------------------------------------------------ */
+
+/* A point in its dexel: depth, index, position in the dexel (0..65535
+ * along each axis). */
+typedef struct fp_pair {
+    float depth;
+    uint32_t index;
+    uint16_t u, v;
+} fp_pair;
+
+static inline int fp_pair_less(fp_pair a, fp_pair b)
+{
+    return a.depth < b.depth || (a.depth == b.depth && a.index < b.index);
+}
+
+/* Puts the k-th smallest of a[0..n) (by depth, then index) at a[k]. */
+static void fp_pair_select(fp_pair *a, size_t n, size_t k)
+{
+    size_t lo = 0, hi = n;
+    while (hi - lo > 16) {
+        size_t mid = lo + (hi - lo) / 2;
+        /* median of three as pivot, moved to hi-1 */
+        fp_pair *p0 = &a[lo], *p1 = &a[mid], *p2 = &a[hi - 1], t;
+        if (fp_pair_less(*p1, *p0)) { t = *p0; *p0 = *p1; *p1 = t; }
+        if (fp_pair_less(*p2, *p0)) { t = *p0; *p0 = *p2; *p2 = t; }
+        if (fp_pair_less(*p2, *p1)) { t = *p1; *p1 = *p2; *p2 = t; }
+        t = *p1; *p1 = a[hi - 1]; a[hi - 1] = t;
+        fp_pair pivot = a[hi - 1];
+        size_t s = lo;
+        for (size_t i = lo; i + 1 < hi; i++) {
+            if (fp_pair_less(a[i], pivot)) {
+                t = a[i]; a[i] = a[s]; a[s] = t;
+                s++;
+            }
+        }
+        t = a[s]; a[s] = a[hi - 1]; a[hi - 1] = t;
+        if (k == s)
+            return;
+        if (k < s)
+            hi = s;
+        else
+            lo = s + 1;
+    }
+    for (size_t i = lo + 1; i < hi; i++) {
+        fp_pair v = a[i];
+        size_t j = i;
+        while (j > lo && fp_pair_less(v, a[j - 1])) {
+            a[j] = a[j - 1];
+            j--;
+        }
+        a[j] = v;
+    }
+}
+
+/* The 2D frame of the dexels: each point maps to (s, t) and a depth;
+ * height: in-plane coordinates and height; range: (phi, theta) about the
+ * pole and the range. */
+typedef struct fp_frame {
+    int kind;
+    double e[3][3];          /* rows: first axis, second axis, normal / pole */
+    double vp[3];            /* range: viewpoint, local frame */
+    double phi0;             /* range: phi measured from here */
+} fp_frame;
+
+/* atan2 to ~1e-5 rad: the dexel of a point only needs a fixed, monotonic
+ * rule, and libm's atan2 would be most of the bucketing time. */
+static float fp_atan2(float y, float x)
+{
+    float ax = fabsf(x), ay = fabsf(y);
+    float mx = ax > ay ? ax : ay, mn = ax > ay ? ay : ax;
+    if (mx == 0.0f)
+        return 0.0f;
+    float z = mn / mx, z2 = z * z;
+    float a = z * (0.99997726f +
+                   z2 * (-0.33262347f +
+                         z2 * (0.19354346f +
+                               z2 * (-0.11643287f + z2 * (0.05265332f + z2 * -0.01172120f)))));
+    if (ay > ax)
+        a = 1.57079633f - a;
+    if (x < 0.0f)
+        a = 3.14159265f - a;
+    return y < 0.0f ? -a : a;
+}
+
+static inline int fp_map(const fp_frame *f, const float *p, float *s, float *t, float *depth)
+{
+    if (f->kind == FP_PLANE) {
+        double x = p[0], y = p[1], z = p[2];
+        *s = (float)(f->e[0][0] * x + f->e[0][1] * y + f->e[0][2] * z);
+        *t = (float)(f->e[1][0] * x + f->e[1][1] * y + f->e[1][2] * z);
+        *depth = (float)(f->e[2][0] * x + f->e[2][1] * y + f->e[2][2] * z);
+    } else {
+        float dx = (float)(p[0] - f->vp[0]), dy = (float)(p[1] - f->vp[1]),
+              dz = (float)(p[2] - f->vp[2]);
+        float a = (float)f->e[0][0] * dx + (float)f->e[0][1] * dy + (float)f->e[0][2] * dz;
+        float b = (float)f->e[1][0] * dx + (float)f->e[1][1] * dy + (float)f->e[1][2] * dz;
+        float c = (float)f->e[2][0] * dx + (float)f->e[2][1] * dy + (float)f->e[2][2] * dz;
+        float rho = sqrtf(a * a + b * b);
+        float phi = fp_atan2(b, a) - (float)f->phi0;
+        if (phi < 0.0f)
+            phi += (float)(2.0 * FP_PI);
+        if (phi >= (float)(2.0 * FP_PI))
+            phi -= (float)(2.0 * FP_PI);
+        *s = phi;
+        *t = fp_atan2(rho, c);
+        *depth = sqrtf(rho * rho + c * c);
+        if (!(*depth > 0.0f))
+            return 0;
+    }
+    return isfinite(*s) && isfinite(*t) && isfinite(*depth);
+}
+
+/* Strided sample of at most FP_SAMPLE point indices. */
+static size_t fp_sample_step(size_t n)
+{
+    return n > FP_SAMPLE ? (n + FP_SAMPLE - 1) / FP_SAMPLE : 1;
+}
+
+/* Height frame: the plane normal to an axis, or of least variance. */
+static void fp_height_frame(const tessel_cloud *cloud, int axis, fp_frame *f)
+{
+    memset(f, 0, sizeof *f);
+    f->kind = FP_PLANE;
+    if (axis >= 0 && axis <= 2) {
+        int a = axis, b = (axis + 1) % 3, c = (axis + 2) % 3;
+        f->e[0][b] = 1.0; /* x: (y, z); y: (z, x); z: (x, y) — right-handed */
+        f->e[1][c] = 1.0;
+        f->e[2][a] = 1.0;
+        return;
+    }
+    size_t n = cloud->count, step = fp_sample_step(n), m = 0;
+    double mean[3] = {0, 0, 0}, cov[9] = {0};
+    for (size_t i = 0; i < n; i += step) {
+        const float *p = cloud->xyz + 3 * i;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            continue;
+        for (int k = 0; k < 3; k++)
+            mean[k] += p[k];
+        m++;
+    }
+    if (m == 0) {
+        f->e[0][0] = f->e[1][1] = f->e[2][2] = 1.0;
+        return;
+    }
+    for (int k = 0; k < 3; k++)
+        mean[k] /= (double)m;
+    for (size_t i = 0; i < n; i += step) {
+        const float *p = cloud->xyz + 3 * i;
+        if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
+            continue;
+        double d[3] = {p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]};
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                cov[3 * a + b] += d[a] * d[b];
+    }
+    double wv[3], v[9];
+    tsl_eigen_sym3(cov, wv, v);
+    double nrm[3] = {v[0], v[3], v[6]}, u[3] = {v[2], v[5], v[8]};
+    /* "Up": non-negative z, else the largest component positive. */
+    int big = 0;
+    for (int k = 1; k < 3; k++)
+        if (fabs(nrm[k]) > fabs(nrm[big]))
+            big = k;
+    if (nrm[2] < 0.0 || (nrm[2] == 0.0 && nrm[big] < 0.0))
+        for (int k = 0; k < 3; k++)
+            nrm[k] = -nrm[k];
+    tsl_normalize(nrm);
+    double un = tsl_dot(u, nrm);
+    for (int k = 0; k < 3; k++)
+        u[k] -= un * nrm[k];
+    tsl_normalize(u);
+    double vv[3];
+    tsl_cross(nrm, u, vv); /* u x v = n */
+    for (int k = 0; k < 3; k++) {
+        f->e[0][k] = u[k];
+        f->e[1][k] = vv[k];
+        f->e[2][k] = nrm[k];
+    }
+}
+
+/* Range frame. The pole is the axis (z, x or y) for which the sample's
+ * points spread most evenly over equal-angle (theta, phi) cells: the
+ * scanner's own axis for a terrestrial scan (its samples are equal-angle
+ * about the vertical), an axis across the view for a camera (whose view
+ * axis as pole would crowd the data into tiny dexels round it). Evenness
+ * is the coefficient of variation of the counts of occupied cells; z wins
+ * unless another axis is clearly more even. phi starts after the widest
+ * empty sector, so a partial scan does not straddle the cut. */
+static void fp_range_frame(const tessel_cloud *cloud, const double vp[3], fp_frame *f,
+                           double *gap)
+{
+    memset(f, 0, sizeof *f);
+    f->kind = FP_RAY;
+    memcpy(f->vp, vp, sizeof f->vp);
+    size_t n = cloud->count, step = fp_sample_step(n);
+    enum { NT = 32, NP = 64 };
+    uint32_t *bins = calloc((size_t)NT * NP, sizeof(uint32_t));
+    int pole = 2;
+    if (bins) {
+        double best_cv = INFINITY;
+        const int order[3] = {2, 0, 1};
+        for (int o = 0; o < 3; o++) {
+            int k = order[o], ka = (k + 1) % 3, kb = (k + 2) % 3;
+            memset(bins, 0, (size_t)NT * NP * sizeof(uint32_t));
+            for (size_t i = 0; i < n; i += step) {
+                const float *p = cloud->xyz + 3 * i;
+                double d[3] = {p[0] - vp[0], p[1] - vp[1], p[2] - vp[2]};
+                if (!tsl_normalize(d) || !isfinite(d[0] + d[1] + d[2]))
+                    continue;
+                double th = atan2(sqrt(d[ka] * d[ka] + d[kb] * d[kb]), d[k]);
+                double ph = atan2(d[kb], d[ka]);
+                int bt = (int)(th / FP_PI * NT), bp = (int)((ph + FP_PI) / (2 * FP_PI) * NP);
+                bt = bt < 0 ? 0 : bt >= NT ? NT - 1 : bt;
+                bp = bp < 0 ? 0 : bp >= NP ? NP - 1 : bp;
+                bins[bt * NP + bp]++;
+            }
+            double sum = 0, sum2 = 0, occ = 0;
+            for (int j = 0; j < NT * NP; j++) {
+                if (!bins[j])
+                    continue;
+                occ++;
+                sum += bins[j];
+                sum2 += (double)bins[j] * bins[j];
+            }
+            if (occ == 0)
+                break;
+            double mean = sum / occ, var = sum2 / occ - mean * mean;
+            double cv = sqrt(var > 0 ? var : 0) / mean;
+            if (o == 0 || cv < 0.8 * best_cv) {
+                best_cv = cv;
+                pole = k;
+            }
+        }
+        free(bins);
+    }
+    int a = (pole + 1) % 3, b = (pole + 2) % 3;
+    f->e[0][a] = 1.0;
+    f->e[1][b] = 1.0;
+    f->e[2][pole] = 1.0;
+    /* Widest empty sector of phi over the sample, on 1/8 degree bins. */
+    enum { BINS = 2880 };
+    uint8_t *hit = calloc(BINS, 1);
+    *gap = 0.0;
+    f->phi0 = -FP_PI;
+    if (!hit)
+        return;
+    for (size_t i = 0; i < n; i += step) {
+        const float *p = cloud->xyz + 3 * i;
+        double x = (p[0] - vp[0]) * f->e[0][0] + (p[1] - vp[1]) * f->e[0][1] +
+                   (p[2] - vp[2]) * f->e[0][2];
+        double y = (p[0] - vp[0]) * f->e[1][0] + (p[1] - vp[1]) * f->e[1][1] +
+                   (p[2] - vp[2]) * f->e[1][2];
+        if (!isfinite(x) || !isfinite(y) || (x == 0.0 && y == 0.0))
+            continue;
+        double phi = atan2(y, x);
+        int k = (int)floor((phi + FP_PI) / (2.0 * FP_PI) * BINS);
+        hit[k < 0 ? 0 : k >= BINS ? BINS - 1 : k] = 1;
+    }
+    int first = -1;
+    for (int k = 0; k < BINS; k++)
+        if (hit[k]) {
+            first = k;
+            break;
+        }
+    if (first >= 0) {
+        int best = 0, best_end = first, run = 0;
+        for (int j = 1; j <= BINS; j++) {
+            int k = (first + j) % BINS;
+            if (hit[k]) {
+                if (run > best) {
+                    best = run;
+                    best_end = k;
+                }
+                run = 0;
+            } else {
+                run++;
+            }
+        }
+        *gap = best * (2.0 * FP_PI / BINS);
+        /* half a bin into the gap: the fast atan2 of fp_map() may differ
+         * from this one by 1e-5 and must not wrap a point round */
+        f->phi0 = -FP_PI + (best_end - 0.5) * (2.0 * FP_PI / BINS);
+    }
+    free(hit);
+}
+
+typedef struct fp_dexels {
+    uint32_t w, h;
+    int wrap_c;
+    double cell[2];
+    uint32_t *rep;
+    size_t reps, filled;
+    uint32_t *filled_slots;  /* the filled dexels, in raster order */
+} fp_dexels;
+
+/* Squared distance, in world units (height) or radians (range), from a
+ * point at (u, v) in dexel (r + dr, c + dc) to the centre of dexel (r, c). */
+static double fp_centre_d2(const fp_dexels *dx, const fp_pair *q, int dr, int dc)
+{
+    double ds = (dc + q->u * (1.0 / 65535.0) - 0.5) * dx->cell[0];
+    double dt = (dr + q->v * (1.0 / 65535.0) - 0.5) * dx->cell[1];
+    return ds * ds + dt * dt;
+}
+
+/* A sampling gap of one dexel should not become a hole: an empty dexel
+ * next to dexels holding spare points (not their representative) takes the
+ * spare point nearest its centre. Raster order, first come first served.
+ * start[k] is the end of dexel k's points in pairs. A filled dexel's point
+ * lies outside it, which can make its triangles overlap their neighbours
+ * in projection: fp_untangle() checks them. */
+static tessel_status fp_fill_empty(fp_dexels *dx, const uint32_t *start, fp_pair *pairs)
+{
+    const uint32_t w = dx->w, h = dx->h;
+    size_t filled = 0, cap = 0;
+    for (uint32_t r = 0; r < h; r++) {
+        for (uint32_t c = 0; c < w; c++) {
+            size_t k = (size_t)r * w + c;
+            if (dx->rep[k] != TESSEL_NONE)
+                continue;
+            double best = INFINITY;
+            fp_pair *pick = NULL;
+            for (int dr = -1; dr <= 1; dr++) {
+                for (int dc = -1; dc <= 1; dc++) {
+                    int64_t nr = (int64_t)r + dr, nc = (int64_t)c + dc;
+                    if (nr < 0 || nr >= (int64_t)h)
+                        continue;
+                    if (nc < 0 || nc >= (int64_t)w) {
+                        if (!dx->wrap_c)
+                            continue;
+                        nc = (nc + (int64_t)w) % (int64_t)w;
+                    }
+                    size_t j = (size_t)nr * w + (size_t)nc;
+                    uint32_t b = j == 0 ? 0 : start[j - 1], e = start[j];
+                    if (e - b < 2)
+                        continue;
+                    /* Only points on this side of the donor's representative:
+                     * nearer to this centre than it is, so the two keep their
+                     * order and the blocks between them do not fold. */
+                    double limit = INFINITY;
+                    for (uint32_t q = b; q < e; q++)
+                        if (pairs[q].index == dx->rep[j])
+                            limit = fp_centre_d2(dx, &pairs[q], dr, dc);
+                    for (uint32_t q = b; q < e; q++) {
+                        uint32_t i = pairs[q].index;
+                        if (i == TESSEL_NONE || i == dx->rep[j])
+                            continue;
+                        double d2 = fp_centre_d2(dx, &pairs[q], dr, dc);
+                        if (!(d2 < limit))
+                            continue;
+                        if (d2 < best || (d2 == best && i < pick->index)) {
+                            best = d2;
+                            pick = &pairs[q];
+                        }
+                    }
+                }
+            }
+            if (pick) {
+                if (tsl_grow((void **)&dx->filled_slots, &cap, filled + 1, sizeof(uint32_t)) !=
+                    TESSEL_OK)
+                    return TESSEL_ERR_NOMEM;
+                dx->rep[k] = pick->index;
+                pick->index = TESSEL_NONE;
+                dx->filled_slots[filled++] = (uint32_t)k;
+            }
+        }
+    }
+    dx->filled = filled;
+    return TESSEL_OK;
+}
+
+/* The representative of a dexel's points a[0..n): among those whose depth
+ * lies in the middle half (ranks ceil((n-1)/4) .. floor(3(n-1)/4); all of
+ * them for one or two points), the one nearest the dexel's centre. Depth
+ * outliers never win, and representatives sit near the dexel centres, so
+ * the array stays regular in projection. */
+static uint32_t fp_representative(const fp_dexels *dx, fp_pair *a, size_t n)
+{
+    size_t k1 = 0, k2 = n - 1;
+    if (n > 2) {
+        k1 = (n - 1 + 3) / 4;
+        k2 = 3 * (n - 1) / 4;
+        fp_pair_select(a, n, k1);
+        if (k2 > k1)
+            fp_pair_select(a + k1, n - k1, k2 - k1);
+    }
+    size_t best = k1;
+    double bd = fp_centre_d2(dx, &a[k1], 0, 0);
+    for (size_t k = k1 + 1; k <= k2; k++) {
+        double d2 = fp_centre_d2(dx, &a[k], 0, 0);
+        if (d2 < bd || (d2 == bd && fp_pair_less(a[k], a[best]))) {
+            bd = d2;
+            best = k;
+        }
+    }
+    return a[best].index;
+}
+
+/* Buckets the points into a w x h array over [lo, lo + size*cell) and
+ * keeps, per dexel, the point at the median depth (the lower median for
+ * an even count; ties by index). */
+static tessel_status fp_bucket(const tessel_cloud *cloud, const fp_frame *f, const float lo[2],
+                               fp_dexels *dx, int nt, const tessel_callbacks *cb)
+{
+    size_t n = cloud->count, cells;
+    if (!tsl_mul_size(dx->w, dx->h, &cells) || cells >= UINT32_MAX)
+        return TESSEL_ERR_LIMIT;
+    uint32_t *id = tsl_alloc_array(n, sizeof(uint32_t));
+    uint32_t *start = tsl_calloc_array(cells + 1, sizeof(uint32_t));
+    dx->rep = tsl_alloc_array(cells, sizeof(uint32_t));
+    if (!id || !start || !dx->rep) {
+        free(id);
+        free(start);
+        return TESSEL_ERR_NOMEM;
+    }
+    const float inv0 = (float)(1.0 / dx->cell[0]), inv1 = (float)(1.0 / dx->cell[1]);
+    const uint32_t w = dx->w, h = dx->h;
+    const int wrap = dx->wrap_c;
+    (void)nt;
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (int64_t i = 0; i < (int64_t)n; i++) {
+        float s, t, d;
+        uint32_t out = TESSEL_NONE;
+        if (fp_map(f, cloud->xyz + 3 * (size_t)i, &s, &t, &d)) {
+            float fs = (s - lo[0]) * inv0, ft = (t - lo[1]) * inv1;
+            int64_t cs = (int64_t)floorf(fs), ct = (int64_t)floorf(ft);
+            if (wrap)
+                cs = ((cs % (int64_t)w) + (int64_t)w) % (int64_t)w;
+            else
+                cs = cs < 0 ? 0 : cs >= (int64_t)w ? (int64_t)w - 1 : cs;
+            ct = ct < 0 ? 0 : ct >= (int64_t)h ? (int64_t)h - 1 : ct;
+            out = (uint32_t)((uint64_t)ct * w + (uint64_t)cs);
+        }
+        id[i] = out;
+    }
+    tessel_status status = tsl_progress(cb, "dexels", 0.3);
+    if (status != TESSEL_OK) {
+        free(id);
+        free(start);
+        return status;
+    }
+    size_t valid = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (id[i] != TESSEL_NONE) {
+            start[id[i] + 1]++;
+            valid++;
+        }
+    }
+    for (size_t k = 0; k < cells; k++)
+        start[k + 1] += start[k];
+    fp_pair *pairs = tsl_alloc_array(valid, sizeof(fp_pair));
+    if (!pairs) {
+        free(id);
+        free(start);
+        return TESSEL_ERR_NOMEM;
+    }
+    /* Stable scatter: start[k] ends at the end of dexel k. */
+    for (size_t i = 0; i < n; i++) {
+        uint32_t k = id[i];
+        if (k == TESSEL_NONE)
+            continue;
+        float s, t, d;
+        fp_map(f, cloud->xyz + 3 * i, &s, &t, &d);
+        float fs = (s - lo[0]) * inv0 - (float)(k % w), ft = (t - lo[1]) * inv1 - (float)(k / w);
+        if (wrap)
+            fs -= floorf(fs);
+        fs = fs < 0.0f ? 0.0f : fs > 1.0f ? 1.0f : fs;
+        ft = ft < 0.0f ? 0.0f : ft > 1.0f ? 1.0f : ft;
+        pairs[start[k]++] =
+            (fp_pair){d, (uint32_t)i, (uint16_t)(fs * 65535.0f + 0.5f),
+                      (uint16_t)(ft * 65535.0f + 0.5f)};
+    }
+    free(id);
+    status = tsl_progress(cb, "dexels", 0.7);
+    if (status != TESSEL_OK) {
+        free(start);
+        free(pairs);
+        return status;
+    }
+    uint32_t *rep = dx->rep;
+    size_t reps = 0;
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : reps) num_threads(nt)
+    for (int64_t k = 0; k < (int64_t)cells; k++) {
+        uint32_t b = k == 0 ? 0 : start[k - 1], e = start[k];
+        if (b == e) {
+            rep[k] = TESSEL_NONE;
+            continue;
+        }
+        rep[k] = fp_representative(dx, pairs + b, e - b);
+        reps++;
+    }
+    dx->reps = reps;
+    tessel_status st = fp_fill_empty(dx, start, pairs);
+    dx->reps += dx->filled;
+    free(start);
+    free(pairs);
+    return st;
+}
+
+/* Chooses the array size: given, from a cell size, or so that occupied
+ * dexels hold points_per_dexel points on average (the occupied area is
+ * measured on a coarse probe grid filled with the sample). */
+static tessel_status fp_size(const tessel_cloud *cloud, const fp_frame *f, const float lo[2],
+                             const float hi[2], const tessel_fixed_plane_params *p,
+                             size_t valid, int full_circle, fp_dexels *dx)
+{
+    double ext[2] = {(double)hi[0] - lo[0], (double)hi[1] - lo[1]};
+    if (full_circle)
+        ext[0] = 2.0 * FP_PI;
+    /* Range mode: dexel area shrinks like sin(theta); the automatic cell
+     * is set on the solid angle. */
+    if (p->columns > 0 && p->rows > 0) {
+        dx->w = p->columns;
+        dx->h = p->rows;
+        dx->cell[0] = ext[0] > 0 ? ext[0] / dx->w : 1.0;
+        dx->cell[1] = ext[1] > 0 ? ext[1] / dx->h : 1.0;
+        return TESSEL_OK;
+    }
+    double cell = p->cell;
+    if (!(cell > 0.0)) {
+        enum { PROBE = 128 };
+        uint8_t *occ = calloc((size_t)PROBE * PROBE, 1);
+        if (!occ)
+            return TESSEL_ERR_NOMEM;
+        double ps = ext[0] > 0 ? ext[0] / PROBE : 1.0, pt = ext[1] > 0 ? ext[1] / PROBE : 1.0;
+        size_t step = fp_sample_step(cloud->count), m = 0;
+        for (size_t i = 0; i < cloud->count; i += step) {
+            float s, t, d;
+            if (!fp_map(f, cloud->xyz + 3 * i, &s, &t, &d))
+                continue;
+            int a = (int)((s - lo[0]) / ps), b = (int)((t - lo[1]) / pt);
+            a = a < 0 ? 0 : a >= PROBE ? PROBE - 1 : a;
+            b = b < 0 ? 0 : b >= PROBE ? PROBE - 1 : b;
+            occ[(size_t)b * PROBE + a] = 1;
+            m++;
+        }
+        /* With fewer sample points than probe cells the probe grid would
+         * look sparse: use a coarser one (merge k x k probe cells). */
+        int k = 1;
+        while (k < PROBE && (double)m < 4.0 * (PROBE / k) * (PROBE / k))
+            k *= 2;
+        double area = 0.0;
+        for (int b = 0; b < PROBE; b += k) {
+            for (int a = 0; a < PROBE; a += k) {
+                int any = 0;
+                for (int j = b; j < b + k && !any; j++)
+                    for (int i = a; i < a + k && !any; i++)
+                        any = occ[(size_t)j * PROBE + i];
+                if (!any)
+                    continue;
+                double cellarea = ps * pt * k * k;
+                if (f->kind == FP_RAY)
+                    cellarea *= sin(lo[1] + (b + 0.5 * k) * pt);
+                area += cellarea;
+            }
+        }
+        free(occ);
+        if (!(area > 0.0) || valid == 0)
+            area = (ext[0] > 0 ? ext[0] : 1.0) * (ext[1] > 0 ? ext[1] : 1.0);
+        cell = sqrt(area * p->points_per_dexel / (double)(valid ? valid : 1));
+        if (!(cell > 0.0))
+            cell = 1.0;
+    }
+    double cw = ceil(ext[0] / cell), ch = ceil(ext[1] / cell);
+    if (cw < 1)
+        cw = 1;
+    if (ch < 1)
+        ch = 1;
+    if (cw * ch >= (double)UINT32_MAX || cw >= (double)UINT32_MAX ||
+        ch >= (double)UINT32_MAX)
+        return TESSEL_ERR_LIMIT;
+    dx->w = (uint32_t)cw;
+    dx->h = (uint32_t)ch;
+    dx->cell[0] = full_circle ? 2.0 * FP_PI / dx->w : cell;
+    dx->cell[1] = cell;
+    return TESSEL_OK;
+}
+
+/* Bounding box of the mapped points (parallel min/max are exact, so the
+ * result does not depend on the thread count). */
+static size_t fp_bounds(const tessel_cloud *cloud, const fp_frame *f, float lo[2], float hi[2],
+                        int nt)
+{
+    float l0 = FLT_MAX, l1 = FLT_MAX, h0 = -FLT_MAX, h1 = -FLT_MAX;
+    size_t valid = 0;
+    (void)nt;
+#pragma omp parallel for schedule(static) reduction(min : l0, l1) reduction(max : h0, h1) \
+    reduction(+ : valid) num_threads(nt)
+    for (int64_t i = 0; i < (int64_t)cloud->count; i++) {
+        float s, t, d;
+        if (!fp_map(f, cloud->xyz + 3 * (size_t)i, &s, &t, &d))
+            continue;
+        valid++;
+        l0 = s < l0 ? s : l0;
+        h0 = s > h0 ? s : h0;
+        l1 = t < l1 ? t : l1;
+        h1 = t > h1 ? t : h1;
+    }
+    lo[0] = l0;
+    lo[1] = l1;
+    hi[0] = h0;
+    hi[1] = h1;
+    return valid;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Emission                                                                  */
+/* ------------------------------------------------------------------------ */
+
+static tessel_status fp_emit(const fp_ctx *x, const uint8_t *codes,
+                             const tessel_triangle_sink *sink, const tessel_callbacks *cb,
+                             size_t *count)
+{
+    uint32_t *buf = tsl_alloc_array((size_t)3 * FP_BATCH, sizeof(uint32_t));
+    if (!buf)
+        return TESSEL_ERR_NOMEM;
+    size_t n = 0, total = 0;
+    tessel_status status = TESSEL_OK;
+    const int flip = x->orient < 0;
+    for (uint32_t r = 0; r < x->ch && status == TESSEL_OK; r++) {
+        const uint8_t *row = codes + (size_t)r * x->cw;
+        const uint32_t *top = x->idx + (size_t)r * x->w;
+        const uint32_t *bot = x->idx + (size_t)(r + 1 == x->h ? 0 : r + 1) * x->w;
+        for (uint32_t c = 0; c < x->cw; c++) {
+            unsigned code = row[c];
+            if (!(code & (FP_T0 | FP_T1)))
+                continue;
+            uint32_t cn = c + 1 == x->w ? 0 : c + 1;
+            uint32_t v[4] = {top[c], top[cn], bot[c], bot[cn]};
+            unsigned diag = code & 1;
+            for (int t = 0; t < 2; t++) {
+                if (!(code & (t ? FP_T1 : FP_T0)))
+                    continue;
+                const int *k = fp_tri_corners[diag][t];
+                buf[3 * n] = v[k[0]];
+                buf[3 * n + 1] = v[k[flip ? 2 : 1]];
+                buf[3 * n + 2] = v[k[flip ? 1 : 2]];
+                if (++n == FP_BATCH) {
+                    status = sink->emit(sink->user_data, buf, n);
+                    total += n;
+                    n = 0;
+                    if (status != TESSEL_OK)
+                        break;
+                }
+            }
+            if (status != TESSEL_OK)
+                break;
+        }
+        if (status == TESSEL_OK && (r & 1023u) == 1023u)
+            status = tsl_progress(cb, "triangles", 0.5 + 0.5 * (double)r / x->ch);
+    }
+    if (status == TESSEL_OK && n > 0) {
+        status = sink->emit(sink->user_data, buf, n);
+        total += n;
+    }
+    free(buf);
+    *count = total;
+    return status;
+}
+
+/* ------------------------------------------------------------------------ */
+/* The whole reconstruction                                                  */
+/* ------------------------------------------------------------------------ */
+
+static tessel_status fp_check_params(const tessel_fixed_plane_params *p)
+{
+    if ((unsigned)p->mode > (unsigned)TESSEL_FIXED_PLANE_GRID)
+        return TESSEL_ERR_INVALID_ARG;
+    if (p->axis < -1 || p->axis > 2)
+        return TESSEL_ERR_INVALID_ARG;
+    if ((p->columns == 0) != (p->rows == 0))
+        return TESSEL_ERR_INVALID_ARG;
+    if (!(p->cell >= 0.0) || !isfinite(p->cell))
+        return TESSEL_ERR_INVALID_ARG;
+    if (!(p->points_per_dexel >= 1.0) || !isfinite(p->points_per_dexel))
+        return TESSEL_ERR_INVALID_ARG;
+    if (!(p->max_angle > 0.0 && p->max_angle < 90.0))
+        return TESSEL_ERR_INVALID_ARG;
+    if (!(p->noise >= 0.0) || !isfinite(p->noise))
+        return TESSEL_ERR_INVALID_ARG;
+    if (!(p->noise_factor >= 0.0) || !isfinite(p->noise_factor))
+        return TESSEL_ERR_INVALID_ARG;
+    if (p->use_viewpoint && !(isfinite(p->viewpoint[0]) && isfinite(p->viewpoint[1]) &&
+                              isfinite(p->viewpoint[2])))
+        return TESSEL_ERR_INVALID_ARG;
+    return TESSEL_OK;
+}
+
+tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
+                                             const tessel_fixed_plane_params *params,
+                                             const tessel_callbacks *callbacks,
+                                             const tessel_triangle_sink *sink,
+                                             tessel_fixed_plane_stats *stats)
+{
+    double t_start = fp_now();
+    tessel_fixed_plane_params p =
+        params ? *params : tessel_fixed_plane_params_default();
+    tessel_fixed_plane_stats st;
+    memset(&st, 0, sizeof st);
+    if (stats)
+        *stats = st;
+    if (!cloud || !sink || !sink->emit || (cloud->count > 0 && !cloud->xyz))
+        return TESSEL_ERR_INVALID_ARG;
+    tessel_status status = fp_check_params(&p);
+    if (status != TESSEL_OK)
+        return status;
+    if (cloud->count >= UINT32_MAX)
+        return TESSEL_ERR_LIMIT;
+    st.mode = p.mode;
+    st.points_in = cloud->count;
+
+    fp_ctx x;
+    memset(&x, 0, sizeof x);
+    x.xyz = cloud->xyz;
+    x.threads = tsl_threads(p.threads);
+    double cosa = cos(p.max_angle * FP_PI / 180.0);
+    x.reach2 = (float)(1.0 / (cosa * cosa));
+
+    double vp_world[3] = {0, 0, 0};
+    int have_vp = 0;
+    if (p.use_viewpoint) {
+        memcpy(vp_world, p.viewpoint, sizeof vp_world);
+        have_vp = 1;
+    } else if (cloud->has_viewpoint) {
+        memcpy(vp_world, cloud->viewpoint, sizeof vp_world);
+        have_vp = 1;
+    }
+
+    fp_dexels dx;
+    memset(&dx, 0, sizeof dx);
+    if (p.mode == TESSEL_FIXED_PLANE_GRID) {
+        if (!cloud->grid || cloud->width == 0 || cloud->height == 0) {
+            tsl_log(callbacks, TESSEL_LOG_WARNING,
+                    "grid mode needs an organized cloud (a width x height grid, as in PCD "
+                    "WIDTH/HEIGHT or PLY 'comment organized W H'); this cloud is "
+                    "unorganized: use the height or range mode");
+            return TESSEL_ERR_INVALID_ARG;
+        }
+        size_t cells;
+        if (!tsl_mul_size(cloud->width, cloud->height, &cells))
+            return TESSEL_ERR_LIMIT;
+        for (size_t k = 0; k < cells; k++)
+            if (cloud->grid[k] != TESSEL_NONE && cloud->grid[k] >= cloud->count)
+                return TESSEL_ERR_INVALID_ARG;
+        x.kind = FP_RAY;
+        x.w = cloud->width;
+        x.h = cloud->height;
+        x.idx = cloud->grid;
+        for (int k = 0; k < 3; k++)
+            x.vp[k] = (float)(vp_world[k] - cloud->offset[k]);
+        x.wrap_r = fp_detect_wrap(&x, 1);
+        x.wrap_c = fp_detect_wrap(&x, 0);
+        size_t reps = 0;
+        for (size_t k = 0; k < cells; k++)
+            reps += cloud->grid[k] != TESSEL_NONE;
+        st.representatives = reps;
+        memcpy(st.viewpoint, vp_world, sizeof st.viewpoint);
+    } else {
+        fp_frame f;
+        double gap = 0.0;
+        if (p.mode == TESSEL_FIXED_PLANE_HEIGHT) {
+            fp_height_frame(cloud, p.axis, &f);
+        } else {
+            if (!have_vp) {
+                tsl_log(callbacks, TESSEL_LOG_WARNING,
+                        "range mode needs the scanner position: give a viewpoint (the "
+                        "cloud has none)");
+                return TESSEL_ERR_INVALID_ARG;
+            }
+            double vpl[3];
+            for (int k = 0; k < 3; k++)
+                vpl[k] = vp_world[k] - cloud->offset[k];
+            fp_range_frame(cloud, vpl, &f, &gap);
+            for (int k = 0; k < 3; k++)
+                x.vp[k] = (float)vpl[k];
+            memcpy(st.viewpoint, vp_world, sizeof st.viewpoint);
+        }
+        status = tsl_progress(callbacks, "dexels", 0.0);
+        if (status != TESSEL_OK)
+            return status;
+        float lo[2], hi[2];
+        size_t valid = fp_bounds(cloud, &f, lo, hi, x.threads);
+        if (valid == 0) {
+            lo[0] = lo[1] = 0.0f;
+            hi[0] = hi[1] = 0.0f;
+        }
+        /* A scan covering the whole circle of phi wraps round: no seam.
+         * Decided on the sample's widest empty sector against the cell. */
+        int full = 0;
+        if (f.kind == FP_RAY) {
+            status = fp_size(cloud, &f, lo, hi, &p, valid, 0, &dx);
+            if (status != TESSEL_OK)
+                return status;
+            if (gap < 2.0 * dx.cell[0] && (double)hi[0] - lo[0] > FP_PI) {
+                full = 1;
+                lo[0] = 0.0f;
+            }
+        }
+        status = fp_size(cloud, &f, lo, hi, &p, valid, full, &dx);
+        if (status != TESSEL_OK)
+            return status;
+        dx.wrap_c = full;
+        status = fp_bucket(cloud, &f, lo, &dx, x.threads, callbacks);
+        if (status != TESSEL_OK) {
+            free(dx.rep);
+            free(dx.filled_slots);
+            return status;
+        }
+        x.kind = f.kind;
+        x.w = dx.w;
+        x.h = dx.h;
+        x.idx = dx.rep;
+        x.wrap_c = dx.wrap_c && dx.w >= 3;
+        if (f.kind == FP_PLANE)
+            for (int k = 0; k < 3; k++)
+                x.dir[k] = (float)f.e[2][k];
+        for (int k = 0; k < 3; k++)
+            st.axis[k] = f.e[2][k];
+        st.cell[0] = dx.cell[0];
+        st.cell[1] = dx.cell[1];
+        st.representatives = dx.reps;
+        st.dexels_filled = dx.filled;
+    }
+    st.seconds_dexels = fp_now() - t_start;
+    st.columns = x.w;
+    st.rows = x.h;
+    x.cw = x.w < 2 ? 0 : x.wrap_c ? x.w : x.w - 1;
+    x.ch = x.h < 2 ? 0 : x.wrap_r ? x.h : x.h - 1;
+    st.wrap_columns = x.wrap_c;
+    st.wrap_rows = x.wrap_r;
+    st.cells = (size_t)x.cw * x.ch;
+
+    if (p.noise > 0.0) {
+        st.noise = p.noise;
+    } else {
+        status = fp_estimate_noise(&x, &st.noise);
+        st.noise_estimated = 1;
+    }
+    st.margin = p.noise_factor * st.noise;
+    x.margin2 = (float)(st.margin * st.margin);
+    fp_vote_orientation(&x);
+
+    uint8_t *codes = NULL;
+    if (status == TESSEL_OK && st.cells > 0) {
+        codes = tsl_alloc_array(st.cells, 1);
+        if (!codes)
+            status = TESSEL_ERR_NOMEM;
+    }
+    if (status == TESSEL_OK)
+        status = tsl_progress(callbacks, "triangles", 0.0);
+    /* Block codes, in parallel over bands of rows. */
+    for (uint32_t band = 0; status == TESSEL_OK && band < x.ch;) {
+        uint32_t nb = (uint32_t)x.threads * 16u, rows_per = FP_BLOCK_ROWS;
+        uint64_t band_end64 = (uint64_t)band + (uint64_t)nb * rows_per;
+        uint32_t band_end = band_end64 > x.ch ? x.ch : (uint32_t)band_end64;
+        uint32_t blocks = (band_end - band + rows_per - 1) / rows_per;
+        size_t missing = 0, open = 0, folded = 0;
+        int failed = 0;
+        int nt = x.threads;
+        (void)nt;
+#pragma omp parallel num_threads(nt) reduction(+ : missing, open, folded, failed)
+        {
+            fp_vrec *rec = tsl_alloc_array((size_t)2 * x.w, sizeof(fp_vrec));
+            uint8_t *fl = tsl_alloc_array((size_t)3 * x.w, 1);
+            /* Every thread must meet the worksharing loop. */
+#pragma omp for schedule(dynamic, 1)
+            for (int64_t bi = 0; bi < (int64_t)blocks; bi++) {
+                if (!rec || !fl) {
+                    failed++;
+                    continue;
+                }
+                uint32_t r0 = band + (uint32_t)bi * rows_per;
+                uint32_t r1 = r0 + rows_per > band_end ? band_end : r0 + rows_per;
+                fp_counts cnt = {0, 0, 0};
+                fp_codes_rows(&x, r0, r1, codes, rec, rec + x.w, fl, fl + x.w,
+                              fl + 2 * (size_t)x.w, &cnt);
+                missing += cnt.missing;
+                open += cnt.open;
+                folded += cnt.folded;
+            }
+            free(rec);
+            free(fl);
+        }
+        if (failed)
+            status = TESSEL_ERR_NOMEM;
+        st.cells_missing += missing;
+        st.cells_open += open;
+        st.triangles_folded += folded;
+        band = band_end;
+        if (status == TESSEL_OK)
+            status = tsl_progress(callbacks, "triangles", 0.4 * (double)band / x.ch);
+    }
+    if (status == TESSEL_OK && codes && dx.filled)
+        fp_untangle(&x, codes, dx.filled_slots, dx.filled, &st.triangles_folded);
+    if (status == TESSEL_OK && codes)
+        status = fp_make_manifold(&x, codes, &st.triangles_nonmanifold);
+    if (status == TESSEL_OK && codes)
+        status = fp_emit(&x, codes, sink, callbacks, &st.triangles);
+    if (status == TESSEL_OK)
+        status = tsl_progress(callbacks, "triangles", 1.0);
+    free(codes);
+    free(dx.rep);
+    free(dx.filled_slots);
+    st.seconds = fp_now() - t_start;
+    if (stats)
+        *stats = st;
+    return status;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Mesh output                                                               */
+/* ------------------------------------------------------------------------ */
+
+typedef struct fp_collect {
+    uint32_t *tris;
+    size_t count, cap;       /* in triangles */
+} fp_collect;
+
+static tessel_status fp_collect_emit(void *user, const uint32_t *tris, size_t count)
+{
+    fp_collect *c = user;
+    size_t need;
+    if (!tsl_add_size(c->count, count, &need))
+        return TESSEL_ERR_NOMEM;
+    tessel_status s = tsl_grow((void **)&c->tris, &c->cap, need, 3 * sizeof(uint32_t));
+    if (s != TESSEL_OK)
+        return s;
+    memcpy(c->tris + 3 * c->count, tris, count * 3 * sizeof(uint32_t));
+    c->count = need;
+    return TESSEL_OK;
+}
+
+tessel_status tessel_reconstruct_fixed_plane_mesh(const tessel_cloud *cloud,
+                                                  const tessel_fixed_plane_params *params,
+                                                  const tessel_callbacks *callbacks,
+                                                  tessel_mesh *mesh,
+                                                  tessel_fixed_plane_stats *stats)
+{
+    if (!mesh)
+        return TESSEL_ERR_INVALID_ARG;
+    memset(mesh, 0, sizeof *mesh);
+    fp_collect col = {NULL, 0, 0};
+    tessel_triangle_sink sink = {fp_collect_emit, &col};
+    tessel_status status = tessel_reconstruct_fixed_plane(cloud, params, callbacks, &sink, stats);
+    uint32_t *map = NULL;
+    if (status == TESSEL_OK) {
+        map = tsl_alloc_array(cloud->count, sizeof(uint32_t));
+        if (!map)
+            status = TESSEL_ERR_NOMEM;
+    }
+    if (status == TESSEL_OK) {
+        for (size_t i = 0; i < cloud->count; i++)
+            map[i] = TESSEL_NONE;
+        for (size_t k = 0; k < 3 * col.count; k++)
+            map[col.tris[k]] = 0;
+        size_t used = 0;
+        for (size_t i = 0; i < cloud->count; i++)
+            if (map[i] != TESSEL_NONE)
+                map[i] = (uint32_t)used++;
+        status = tessel_mesh_alloc(mesh, used, col.count, cloud->normals != NULL,
+                                   cloud->rgb != NULL);
+        if (status == TESSEL_OK) {
+            memcpy(mesh->offset, cloud->offset, sizeof mesh->offset);
+            for (size_t i = 0; i < cloud->count; i++) {
+                uint32_t j = map[i];
+                if (j == TESSEL_NONE)
+                    continue;
+                memcpy(mesh->xyz + 3 * (size_t)j, cloud->xyz + 3 * i, 3 * sizeof(float));
+                if (cloud->normals)
+                    memcpy(mesh->normals + 3 * (size_t)j, cloud->normals + 3 * i,
+                           3 * sizeof(float));
+                if (cloud->rgb)
+                    memcpy(mesh->rgb + 3 * (size_t)j, cloud->rgb + 3 * i, 3);
+            }
+            for (size_t k = 0; k < 3 * col.count; k++)
+                mesh->triangles[k] = map[col.tris[k]];
+        }
+    }
+    free(map);
+    free(col.tris);
+    return status;
+}
