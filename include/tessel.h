@@ -797,13 +797,13 @@ typedef struct tessel_smooth_params {
                                  (3..256) */
     double sigma_rho;         /* scale of the robust error norm, multiple of
                                  the spacing h: heights beyond ~2 sigma_rho
-                                 count as outliers; default 1.5 (> 0; the
+                                 count as outliers; default 2 (> 0; the
                                  paper uses 1-2.5) */
     double sigma_w;           /* scale of the Gaussian distance weight,
-                                 multiple of h; default 2 (> 0; the paper
+                                 multiple of h; default 2.5 (> 0; the paper
                                  uses 1.5-3) */
     uint32_t passes;          /* smoothing passes, each on the previous
-                                 pass's output; default 1 (1..100; ignored
+                                 pass's output; default 2 (1..100; ignored
                                  by projections) */
     uint32_t max_iterations;  /* IRLS iteration cap per point; default 20
                                  (1..1000) */

@@ -96,5 +96,7 @@ int cmd_convert(int argc, char **argv);
 int cmd_normals(int argc, char **argv);
 int cmd_check(int argc, char **argv);
 int cmd_render(int argc, char **argv);
+int cmd_smooth(int argc, char **argv);
+int cmd_simplify(int argc, char **argv);
 
 #endif /* TESSEL_CLI_H */

@@ -1,0 +1,567 @@
+/* Benchmark of the noisy-cloud stages (src/smooth.c, src/cluster.c,
+ * src/simplify.c):
+ *   1. throughput: smoothing, clustering and representatives on a
+ *      fixed-seed noisy sphere (default 1,000,000 points), 1 and 2 threads;
+ *   2. accuracy on real data (with --data DIR): for NAME in bunny elephant
+ *      knot2, the RMS distance from NAME.pd.n05.ply to the true surface
+ *      NAME.gt.ply before and after smoothing, and of the representatives;
+ *      reduced sizes for a grid of n_min, sigma_max and max_diameter;
+ *   3. sharp features: a noisy cube (noise 0.5% of the diagonal), the
+ *      distance to the cube near its edges and on its faces before and
+ *      after.
+ * Distances are exact point-to-triangle distances (closest point on a
+ * triangle, Ericson, "Real-Time Collision Detection" 5.1.5) found through a
+ * uniform grid of triangles.
+ *
+ * usage: bench_smooth [--n POINTS] [--data DIR] [--passes P] [--skip-speed] */
+#include "tessel.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static uint64_t rng_state = 12345;
+static double urand(void)
+{
+    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+static double gauss(void)
+{
+    double u = urand(), v = urand();
+    return sqrt(-2.0 * log(u + 1e-300)) * cos(6.283185307179586 * v);
+}
+
+/* ---- point to mesh distance ---- */
+
+typedef struct tri_grid {
+    const tessel_mesh *m;
+    double lo[3], cell;
+    long dim[3];
+    size_t *start;     /* cells + 1 */
+    uint32_t *tri;     /* triangle ids by cell */
+} tri_grid;
+
+static long clampl(long v, long a, long b) { return v < a ? a : (v > b ? b : v); }
+
+static void tri_box(const tri_grid *g, uint32_t t, long lo[3], long hi[3])
+{
+    const uint32_t *ix = g->m->triangles + 3 * (size_t)t;
+    for (int a = 0; a < 3; a++) {
+        double mn = INFINITY, mx = -INFINITY;
+        for (int k = 0; k < 3; k++) {
+            double v = g->m->xyz[3 * (size_t)ix[k] + a];
+            mn = fmin(mn, v);
+            mx = fmax(mx, v);
+        }
+        lo[a] = clampl((long)floor((mn - g->lo[a]) / g->cell), 0, g->dim[a] - 1);
+        hi[a] = clampl((long)floor((mx - g->lo[a]) / g->cell), 0, g->dim[a] - 1);
+    }
+}
+
+static int tri_grid_build(tri_grid *g, const tessel_mesh *m)
+{
+    memset(g, 0, sizeof *g);
+    g->m = m;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < m->vertex_count; i++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fmin(lo[a], m->xyz[3 * i + a]);
+            hi[a] = fmax(hi[a], m->xyz[3 * i + a]);
+        }
+    double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                       (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    /* About one triangle per cell on a surface. */
+    g->cell = diag / sqrt((double)m->triangle_count) * 1.5;
+    size_t cells = 1;
+    for (int a = 0; a < 3; a++) {
+        g->lo[a] = lo[a] - 0.1 * diag;
+        g->dim[a] = (long)((hi[a] - lo[a] + 0.2 * diag) / g->cell) + 1;
+        cells *= (size_t)g->dim[a];
+    }
+    g->start = calloc(cells + 1, sizeof *g->start);
+    if (!g->start)
+        return -1;
+    for (int pass = 0; pass < 2; pass++) {
+        for (uint32_t t = 0; t < m->triangle_count; t++) {
+            long a[3], b[3];
+            tri_box(g, t, a, b);
+            for (long x = a[0]; x <= b[0]; x++)
+                for (long y = a[1]; y <= b[1]; y++)
+                    for (long z = a[2]; z <= b[2]; z++) {
+                        size_t c = ((size_t)x * g->dim[1] + y) * g->dim[2] + z;
+                        if (pass == 0)
+                            g->start[c + 1]++;
+                        else
+                            g->tri[g->start[c]++] = t;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t c = 0; c < cells; c++)
+                g->start[c + 1] += g->start[c];
+            g->tri = malloc((g->start[cells] + 1) * sizeof *g->tri);
+            if (!g->tri)
+                return -1;
+        } else {
+            for (size_t c = cells; c > 0; c--)
+                g->start[c] = g->start[c - 1];
+            g->start[0] = 0;
+        }
+    }
+    return 0;
+}
+
+static void tri_grid_free(tri_grid *g)
+{
+    free(g->start);
+    free(g->tri);
+}
+
+static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* Squared distance from p to triangle abc. */
+static double point_triangle_d2(const double p[3], const double a[3], const double b[3],
+                                const double c[3])
+{
+    double ab[3], ac[3], ap[3], q[3];
+    for (int i = 0; i < 3; i++)
+        ab[i] = b[i] - a[i], ac[i] = c[i] - a[i], ap[i] = p[i] - a[i];
+    double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+    if (d1 <= 0 && d2 <= 0) {
+        memcpy(q, a, sizeof q);
+        goto done;
+    }
+    double bp[3];
+    for (int i = 0; i < 3; i++)
+        bp[i] = p[i] - b[i];
+    double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+    if (d3 >= 0 && d4 <= d3) {
+        memcpy(q, b, sizeof q);
+        goto done;
+    }
+    double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+        double v = d1 / (d1 - d3);
+        for (int i = 0; i < 3; i++)
+            q[i] = a[i] + v * ab[i];
+        goto done;
+    }
+    double cp[3];
+    for (int i = 0; i < 3; i++)
+        cp[i] = p[i] - c[i];
+    double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+    if (d6 >= 0 && d5 <= d6) {
+        memcpy(q, c, sizeof q);
+        goto done;
+    }
+    double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+        double w = d2 / (d2 - d6);
+        for (int i = 0; i < 3; i++)
+            q[i] = a[i] + w * ac[i];
+        goto done;
+    }
+    double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+        double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (int i = 0; i < 3; i++)
+            q[i] = b[i] + w * (c[i] - b[i]);
+        goto done;
+    }
+    {
+        double den = 1.0 / (va + vb + vc), v = vb * den, w = vc * den;
+        for (int i = 0; i < 3; i++)
+            q[i] = a[i] + ab[i] * v + ac[i] * w;
+    }
+done:;
+    double e[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+    return dot3(e, e);
+}
+
+/* Distance from p (mesh coordinates) to the mesh: rings of cells around
+ * p's cell until no unvisited cell can be nearer. */
+static double mesh_distance(const tri_grid *g, const double p[3])
+{
+    long c[3];
+    for (int a = 0; a < 3; a++)
+        c[a] = clampl((long)floor((p[a] - g->lo[a]) / g->cell), 0, g->dim[a] - 1);
+    long maxr = g->dim[0] + g->dim[1] + g->dim[2];
+    double best = INFINITY;
+    for (long r = 0; r <= maxr; r++) {
+        for (long x = c[0] - r; x <= c[0] + r; x++) {
+            if (x < 0 || x >= g->dim[0])
+                continue;
+            for (long y = c[1] - r; y <= c[1] + r; y++) {
+                if (y < 0 || y >= g->dim[1])
+                    continue;
+                for (long z = c[2] - r; z <= c[2] + r; z++) {
+                    if (z < 0 || z >= g->dim[2])
+                        continue;
+                    if (labs(x - c[0]) != r && labs(y - c[1]) != r && labs(z - c[2]) != r)
+                        continue;
+                    size_t cell = ((size_t)x * g->dim[1] + y) * g->dim[2] + z;
+                    for (size_t i = g->start[cell]; i < g->start[cell + 1]; i++) {
+                        const uint32_t *t = g->m->triangles + 3 * (size_t)g->tri[i];
+                        double v[3][3];
+                        for (int k = 0; k < 3; k++)
+                            for (int a = 0; a < 3; a++)
+                                v[k][a] = g->m->xyz[3 * (size_t)t[k] + a];
+                        double d2 = point_triangle_d2(p, v[0], v[1], v[2]);
+                        best = d2 < best ? d2 : best;
+                    }
+                }
+            }
+        }
+        /* Every unvisited cell is beyond the box of rings 0..r. */
+        double bound = INFINITY;
+        for (int a = 0; a < 3; a++) {
+            double blo = g->lo[a] + (double)(c[a] - r) * g->cell;
+            double bhi = g->lo[a] + (double)(c[a] + r + 1) * g->cell;
+            bound = fmin(bound, fmin(p[a] - blo, bhi - p[a]));
+        }
+        if (bound > 0 && best <= bound * bound)
+            break;
+    }
+    return sqrt(best);
+}
+
+/* RMS and max distance of the cloud's points to the mesh (world coords). */
+static void cloud_distance(const tri_grid *g, const tessel_cloud *c, double *rms, double *mx)
+{
+    double s = 0, m = 0;
+#pragma omp parallel for reduction(+ : s) reduction(max : m) schedule(dynamic, 1024)
+    for (size_t i = 0; i < c->count; i++) {
+        double p[3];
+        for (int a = 0; a < 3; a++)
+            p[a] = c->xyz[3 * i + a] + c->offset[a] - g->m->offset[a];
+        double d = mesh_distance(g, p);
+        s += d * d;
+        m = d > m ? d : m;
+    }
+    *rms = sqrt(s / (double)c->count);
+    *mx = m;
+}
+
+/* ---- 1. throughput ---- */
+
+static void noisy_sphere(tessel_cloud *c, size_t n, double sigma)
+{
+    if (tessel_cloud_alloc(c, n, 0, 0) != TESSEL_OK) {
+        fprintf(stderr, "out of memory\n");
+        exit(1);
+    }
+    /* Random positions (not a spiral): a scan-like, unsorted input. */
+    for (size_t i = 0; i < n; i++) {
+        double z = 2 * urand() - 1, a = 6.283185307179586 * urand(), r = sqrt(1 - z * z);
+        double s = 1 + sigma * gauss();
+        c->xyz[3 * i] = (float)(s * r * cos(a));
+        c->xyz[3 * i + 1] = (float)(s * r * sin(a));
+        c->xyz[3 * i + 2] = (float)(s * z);
+    }
+}
+
+static void bench_speed(size_t n)
+{
+    tessel_cloud c, out, reps;
+    noisy_sphere(&c, n, 0.004);
+    printf("## Throughput: noisy unit sphere, %zu points (uniform random, noise 0.004)\n\n", n);
+    double t0 = now(), c0 = cpu_now(), h;
+    if (tessel_cloud_spacing(&c, &h) != TESSEL_OK)
+        return;
+    printf("spacing estimate: h = %.5f in %.3f s\n\n", h, now() - t0);
+    (void)c0;
+    printf("| stage | threads | wall s | cpu s | points/s (wall) | notes |\n");
+    printf("|---|---|---|---|---|---|\n");
+    for (int th = 1; th <= 2; th++) {
+        tessel_smooth_params p = tessel_smooth_params_default();
+        p.spacing = h;
+        p.threads = th;
+        tessel_smooth_stats st;
+        t0 = now(), c0 = cpu_now();
+        if (tessel_smooth(&c, &out, &p, NULL, &st) != TESSEL_OK)
+            return;
+        double w = now() - t0, cpu = cpu_now() - c0;
+        printf("| smooth (k=%u, 1 pass) | %d | %.3f | %.3f | %.0f | %.2f IRLS iterations, %zu unfit |\n",
+               p.k, th, w, cpu, n / w, st.mean_iterations, st.unfit);
+        tessel_simplify_params sp = tessel_simplify_params_default();
+        sp.cluster.spacing = sp.projection.spacing = h;
+        sp.cluster.threads = sp.projection.threads = th;
+        tessel_clusters cl;
+        t0 = now(), c0 = cpu_now();
+        if (tessel_cluster(&out, &sp.cluster, NULL, &cl) != TESSEL_OK)
+            return;
+        double w1 = now() - t0, cpu1 = cpu_now() - c0;
+        t0 = now(), c0 = cpu_now();
+        tessel_simplify_stats ss;
+        if (tessel_representatives(&out, &cl, &sp, NULL, &reps, &ss) != TESSEL_OK)
+            return;
+        double w2 = now() - t0, cpu2 = cpu_now() - c0;
+        printf("| cluster | %d | %.3f | %.3f | %.0f | %zu clusters |\n", th, w1, cpu1, n / w1,
+               cl.count);
+        printf("| representatives | %d | %.3f | %.3f | %.0f | %zu points (%.1fx fewer) |\n", th, w2,
+               cpu2, n / w2, reps.count, (double)n / reps.count);
+        tessel_clusters_free(&cl);
+        tessel_cloud_free(&reps);
+        tessel_cloud_free(&out);
+    }
+    printf("\n");
+    tessel_cloud_free(&c);
+}
+
+/* ---- 2. real data ---- */
+
+static void bench_data(const char *dir, uint32_t passes)
+{
+    static const char *names[] = {"bunny", "elephant", "knot2"};
+    printf("## Accuracy: DIR/NAME.pd.n05.ply against NAME.gt.ply\n\n");
+    printf("RMS / max: distance to the true surface in %% of its bounding-box "
+           "diagonal. Times are wall seconds.\n\n");
+    printf("| data | points | h/diag %% | noisy RMS | smoothed RMS (passes) | gain | time | "
+           "reps | reps RMS | time |\n");
+    printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    for (size_t f = 0; f < sizeof names / sizeof *names; f++) {
+        char path[1024];
+        tessel_cloud c, s, r;
+        tessel_mesh gt;
+        snprintf(path, sizeof path, "%s/%s.pd.n05.ply", dir, names[f]);
+        if (tessel_cloud_read(&c, path, NULL, NULL) != TESSEL_OK) {
+            printf("| %s | (cannot read %s) |\n", names[f], path);
+            continue;
+        }
+        snprintf(path, sizeof path, "%s/%s.gt.ply", dir, names[f]);
+        if (tessel_mesh_read(&gt, path, NULL, NULL) != TESSEL_OK) {
+            printf("| %s | (cannot read %s) |\n", names[f], path);
+            tessel_cloud_free(&c);
+            continue;
+        }
+        tri_grid g;
+        if (tri_grid_build(&g, &gt) != 0)
+            return;
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t i = 0; i < gt.vertex_count; i++)
+            for (int a = 0; a < 3; a++) {
+                lo[a] = fmin(lo[a], gt.xyz[3 * i + a]);
+                hi[a] = fmax(hi[a], gt.xyz[3 * i + a]);
+            }
+        double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                           (hi[2] - lo[2]) * (hi[2] - lo[2]));
+        double r0, m0, r1, m1, r2, m2, h;
+        cloud_distance(&g, &c, &r0, &m0);
+        tessel_cloud_spacing(&c, &h);
+        tessel_smooth_params p = tessel_smooth_params_default();
+        p.passes = passes;
+        double t0 = now();
+        if (tessel_smooth(&c, &s, &p, NULL, NULL) != TESSEL_OK)
+            return;
+        double ts = now() - t0;
+        cloud_distance(&g, &s, &r1, &m1);
+        t0 = now();
+        tessel_simplify_stats ss;
+        if (tessel_simplify(&s, &r, NULL, NULL, &ss) != TESSEL_OK)
+            return;
+        double tr = now() - t0;
+        cloud_distance(&g, &r, &r2, &m2);
+        printf("| %s | %zu | %.3f | %.3f / %.3f | %.3f / %.3f (%u) | %.1fx | %.3f | %zu | %.3f / %.3f "
+               "| %.3f |\n",
+               names[f], c.count, 100 * h / diag, 100 * r0 / diag, 100 * m0 / diag,
+               100 * r1 / diag, 100 * m1 / diag, passes, r0 / r1, ts, r.count, 100 * r2 / diag,
+               100 * m2 / diag, tr);
+
+        /* Sensitivity: 1-3 passes and sigma_rho. */
+        if (f == 0) {
+            printf("\n%s, smoothing parameters (RMS %% of diagonal):\n\n", names[f]);
+            printf("| sigma_rho | sigma_w | k | passes | RMS | gain |\n|---|---|---|---|---|---|\n");
+            static const double grid[][4] = {{1, 2, 24, 1},   {1.5, 2, 24, 1}, {2.5, 2, 24, 1},
+                                             {1.5, 1.5, 24, 1}, {1.5, 3, 24, 1}, {1.5, 3, 48, 1},
+                                             {1.5, 2, 24, 2}, {1.5, 2, 24, 3}, {2.5, 1.5, 24, 2}};
+            for (size_t i = 0; i < sizeof grid / sizeof *grid; i++) {
+                tessel_cloud s2;
+                tessel_smooth_params q = tessel_smooth_params_default();
+                q.sigma_rho = grid[i][0], q.sigma_w = grid[i][1];
+                q.k = (uint32_t)grid[i][2], q.passes = (uint32_t)grid[i][3];
+                if (tessel_smooth(&c, &s2, &q, NULL, NULL) != TESSEL_OK)
+                    return;
+                double rr, mm;
+                cloud_distance(&g, &s2, &rr, &mm);
+                printf("| %.1f | %.1f | %u | %u | %.4f | %.1fx |\n", q.sigma_rho, q.sigma_w, q.k,
+                       q.passes, 100 * rr / diag, r0 / rr);
+                tessel_cloud_free(&s2);
+            }
+            printf("\n%s, reduced size (smoothed cloud of %zu points):\n\n", names[f], s.count);
+            printf("| n_min | sigma_max | max_diameter | representatives | reps RMS |\n");
+            printf("|---|---|---|---|---|\n");
+            static const double cg[][3] = {{10, 0.01, 8},   {10, 0.01, 4},  {10, 0.01, 12},
+                                           {10, 0.002, 12}, {5, 0.002, 12}, {20, 0.002, 12},
+                                           {10, 0.0005, 12}, {10, 0.01, INFINITY},
+                                           {10, 0.002, INFINITY}};
+            for (size_t i = 0; i < sizeof cg / sizeof *cg; i++) {
+                tessel_simplify_params q = tessel_simplify_params_default();
+                q.cluster.n_min = (uint32_t)cg[i][0];
+                q.cluster.sigma_max = cg[i][1];
+                q.cluster.max_diameter = cg[i][2];
+                tessel_cloud r3;
+                if (tessel_simplify(&s, &r3, &q, NULL, NULL) != TESSEL_OK)
+                    return;
+                double rr, mm;
+                cloud_distance(&g, &r3, &rr, &mm);
+                printf("| %u | %g | %g | %zu | %.4f |\n", q.cluster.n_min, q.cluster.sigma_max,
+                       q.cluster.max_diameter, r3.count, 100 * rr / diag);
+                tessel_cloud_free(&r3);
+            }
+            printf("\n| data | points | h/diag %% | noisy RMS | smoothed RMS (passes) | gain | time | "
+                   "reps | reps RMS | time |\n");
+            printf("|---|---|---|---|---|---|---|---|---|---|\n");
+        }
+        tri_grid_free(&g);
+        tessel_cloud_free(&r);
+        tessel_cloud_free(&s);
+        tessel_cloud_free(&c);
+        tessel_mesh_free(&gt);
+    }
+    printf("\n");
+}
+
+/* ---- 3. sharp features ---- */
+
+static double cube_distance(const float *p)
+{
+    double out2 = 0.0, inmax = -INFINITY;
+    for (int d = 0; d < 3; d++) {
+        double q = fabs(p[d]) - 1.0;
+        if (q > 0)
+            out2 += q * q;
+        inmax = fmax(inmax, q);
+    }
+    return out2 > 0 ? sqrt(out2) : -inmax;
+}
+static double cube_edge_distance(const float *p)
+{
+    double best = INFINITY;
+    for (int d = 0; d < 3; d++) {
+        double x = 1.0 - fabs(p[(d + 1) % 3]), y = 1.0 - fabs(p[(d + 2) % 3]);
+        best = fmin(best, sqrt(x * x + y * y));
+    }
+    return best;
+}
+
+static void bench_cube(void)
+{
+    const size_t side = 100; /* 60,000 points */
+    const double diag = 2 * sqrt(3.0), noise = 0.005 * diag;
+    tessel_cloud clean, c;
+    if (tessel_cloud_alloc(&clean, 6 * side * side, 0, 0) != TESSEL_OK ||
+        tessel_cloud_alloc(&c, 6 * side * side, 0, 0) != TESSEL_OK)
+        return;
+    size_t k = 0;
+    for (int f = 0; f < 6; f++)
+        for (size_t i = 0; i < side; i++)
+            for (size_t j = 0; j < side; j++, k++) {
+                double u = -1 + 2 * (i + 0.25 + 0.5 * urand()) / side;
+                double v = -1 + 2 * (j + 0.25 + 0.5 * urand()) / side, p[3];
+                int ax = f / 2;
+                p[ax] = (f & 1) ? 1 : -1;
+                p[(ax + 1) % 3] = u;
+                p[(ax + 2) % 3] = v;
+                for (int d = 0; d < 3; d++) {
+                    clean.xyz[3 * k + d] = (float)p[d];
+                    c.xyz[3 * k + d] = (float)(p[d] + noise * gauss());
+                }
+            }
+    double h;
+    tessel_cloud_spacing(&c, &h);
+    printf("## Sharp features: cube [-1,1]^3, %zu points, Gaussian noise %.4f (0.5%% of the "
+           "diagonal, %.2f h)\n\n",
+           c.count, noise, noise / h);
+    printf("RMS distance to the cube (in units of h = %.4f) by distance of the point's true "
+           "position from the nearest edge:\n\n", h);
+    printf("| operator | passes | < 1 h | 1-2 h | 2-4 h | > 4 h (faces) |\n|---|---|---|---|---|---|\n");
+    const double bins[] = {1, 2, 4, INFINITY};
+    for (int run = -1; run < 5; run++) {
+        tessel_cloud s;
+        const tessel_cloud *src = &c;
+        const char *name = "input";
+        uint32_t passes = 0;
+        if (run >= 0) {
+            tessel_smooth_params p = tessel_smooth_params_default();
+            passes = p.passes = run % 2 ? 2 : 1;
+            name = "robust (defaults)";
+            if (run >= 2 && run < 4) {
+                p.sigma_rho = 1e6;
+                name = "plain weighted PCA";
+            } else if (run == 4) {
+                p.sigma_rho = 1.0;
+                p.passes = passes = 2;
+                name = "robust, sigma_rho 1";
+            }
+            if (tessel_smooth(&c, &s, &p, NULL, NULL) != TESSEL_OK)
+                return;
+            src = &s;
+        }
+        double sum[4] = {0}, cnt[4] = {0};
+        for (size_t i = 0; i < c.count; i++) {
+            double e = cube_edge_distance(clean.xyz + 3 * i) / h, d = cube_distance(src->xyz + 3 * i);
+            int b = 0;
+            while (e >= bins[b])
+                b++;
+            sum[b] += d * d;
+            cnt[b]++;
+        }
+        printf("| %s | %u |", name, passes);
+        for (int b = 0; b < 4; b++)
+            printf(" %.3f |", sqrt(sum[b] / cnt[b]) / h);
+        printf("\n");
+        if (run >= 0)
+            tessel_cloud_free(&s);
+    }
+    printf("\n");
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&clean);
+}
+
+int main(int argc, char **argv)
+{
+    size_t n = 1000000;
+    const char *dir = NULL;
+    uint32_t passes = 1;
+    int speed = 1;
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--n") && i + 1 < argc)
+            n = strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--data") && i + 1 < argc)
+            dir = argv[++i];
+        else if (!strcmp(argv[i], "--passes") && i + 1 < argc)
+            passes = (uint32_t)strtoul(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--skip-speed"))
+            speed = 0;
+        else {
+            fprintf(stderr, "usage: bench_smooth [--n POINTS] [--data DIR] [--passes P] "
+                            "[--skip-speed]\n");
+            return 1;
+        }
+    }
+    printf("# bench_smooth (tessel %s)\n\n", tessel_version());
+    if (speed && n >= 100)
+        bench_speed(n);
+    if (dir)
+        bench_data(dir, passes < 1 ? 1 : passes);
+    bench_cube();
+    return 0;
+}

@@ -1,0 +1,574 @@
+/* Robust smoothing (src/smooth.c): noisy plane and sphere with known
+ * surfaces, robustness to outliers, sharp edges of a cube, the projector,
+ * independence from thread count and input order, argument checks. */
+#include "tessel.h"
+#include "test.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- deterministic random numbers and generators ---- */
+
+static uint64_t rng_state;
+static double urand(void) /* [0, 1) */
+{
+    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+static double gauss(void)
+{
+    double u = urand(), v = urand();
+    return sqrt(-2.0 * log(u + 1e-300)) * cos(6.283185307179586 * v);
+}
+
+/* n points on the unit square of z = 0 (jittered grid, spacing ~ 1/side),
+ * with Gaussian noise of sigma in z. */
+static void make_plane(tessel_cloud *c, size_t side, double sigma)
+{
+    CHECK(tessel_cloud_alloc(c, side * side, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < side; i++)
+        for (size_t j = 0; j < side; j++) {
+            float *p = c->xyz + 3 * (i * side + j);
+            p[0] = (float)((i + 0.25 + 0.5 * urand()) / side);
+            p[1] = (float)((j + 0.25 + 0.5 * urand()) / side);
+            p[2] = (float)(sigma * gauss());
+        }
+}
+
+/* n points on the unit sphere (Fibonacci spiral: even spacing), moved
+ * radially by Gaussian noise of sigma. */
+static void make_sphere(tessel_cloud *c, size_t n, double sigma)
+{
+    CHECK(tessel_cloud_alloc(c, n, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < n; i++) {
+        double z = 1.0 - (2.0 * i + 1.0) / n;
+        double r = sqrt(1.0 - z * z), a = 2.399963229728653 * i;
+        double s = 1.0 + sigma * gauss();
+        c->xyz[3 * i] = (float)(s * r * cos(a));
+        c->xyz[3 * i + 1] = (float)(s * r * sin(a));
+        c->xyz[3 * i + 2] = (float)(s * z);
+    }
+}
+
+/* The surface of the cube [-1,1]^3: per face a jittered side x side grid,
+ * plus Gaussian noise of sigma in all three directions. */
+static void make_cube(tessel_cloud *c, size_t side, double sigma)
+{
+    CHECK(tessel_cloud_alloc(c, 6 * side * side, 0, 0) == TESSEL_OK);
+    size_t k = 0;
+    for (int f = 0; f < 6; f++)
+        for (size_t i = 0; i < side; i++)
+            for (size_t j = 0; j < side; j++) {
+                double u = -1.0 + 2.0 * (i + 0.25 + 0.5 * urand()) / side;
+                double v = -1.0 + 2.0 * (j + 0.25 + 0.5 * urand()) / side;
+                double w = (f & 1) ? 1.0 : -1.0;
+                double p[3];
+                int ax = f / 2;
+                p[ax] = w;
+                p[(ax + 1) % 3] = u;
+                p[(ax + 2) % 3] = v;
+                for (int d = 0; d < 3; d++)
+                    c->xyz[3 * k + d] = (float)(p[d] + sigma * gauss());
+                k++;
+            }
+}
+
+/* Distance from p to the surface of the cube [-1,1]^3. */
+static double cube_distance(const float *p)
+{
+    double q[3], out2 = 0.0, inmax = -1e300;
+    for (int d = 0; d < 3; d++) {
+        q[d] = fabs(p[d]) - 1.0;
+        if (q[d] > 0)
+            out2 += q[d] * q[d];
+        if (q[d] > inmax)
+            inmax = q[d];
+    }
+    return out2 > 0 ? sqrt(out2) : -inmax;
+}
+/* Distance from p to the nearest cube edge line segment region: how close
+ * to a sharp feature it is. */
+static double cube_edge_distance(const float *p)
+{
+    double a[3];
+    for (int d = 0; d < 3; d++)
+        a[d] = 1.0 - fabs(p[d]);
+    /* An edge is where two coordinates are at +-1. */
+    double best = 1e300;
+    for (int d = 0; d < 3; d++) {
+        double x = a[(d + 1) % 3], y = a[(d + 2) % 3];
+        double e = sqrt(x * x + y * y);
+        if (e < best)
+            best = e;
+    }
+    return best;
+}
+
+static double rms_z(const tessel_cloud *c)
+{
+    double s = 0;
+    for (size_t i = 0; i < c->count; i++)
+        s += (double)c->xyz[3 * i + 2] * c->xyz[3 * i + 2];
+    return sqrt(s / c->count);
+}
+static double rms_sphere(const tessel_cloud *c)
+{
+    double s = 0;
+    for (size_t i = 0; i < c->count; i++) {
+        const float *p = c->xyz + 3 * i;
+        double r = sqrt((double)p[0] * p[0] + (double)p[1] * p[1] + (double)p[2] * p[2]);
+        s += (r - 1.0) * (r - 1.0);
+    }
+    return sqrt(s / c->count);
+}
+
+/* ---- tests ---- */
+
+static void test_plane(void)
+{
+    rng_state = 1;
+    tessel_cloud in, out;
+    const size_t side = 120;
+    const double h = 1.0 / side;
+    make_plane(&in, side, 0.5 * h);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.passes = 1;
+    tessel_smooth_stats st;
+    CHECK(tessel_smooth(&in, &out, &p, NULL, &st) == TESSEL_OK);
+    CHECK(out.count == in.count && out.normals != NULL);
+    double before = rms_z(&in), after = rms_z(&out);
+    CHECK_MSG(after * 3.0 < before, "plane rms %g -> %g", before, after);
+    CHECK_MSG(st.spacing > 0.3 * h && st.spacing < 1.5 * h, "spacing %g, grid %g", st.spacing, h);
+    CHECK(st.unfit == 0);
+    CHECK(st.mean_iterations >= 1.0 && st.mean_iterations < p.max_iterations);
+    CHECK(st.rms_displacement > 0.0 && st.max_displacement >= st.rms_displacement);
+    /* Normals are unit and, away from the border (where the neighbourhood
+     * is one-sided and the noise tilts the fit), near vertical; points move
+     * along them. */
+    size_t bad = 0, inner = 0;
+    double tang = 0, mean_nz = 0;
+    for (size_t i = 0; i < out.count; i++) {
+        const float *n = out.normals + 3 * i, *q = in.xyz + 3 * i;
+        double len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        bad += fabs(len - 1.0) > 1e-5;
+        if (q[0] < 4 * h || q[0] > 1 - 4 * h || q[1] < 4 * h || q[1] > 1 - 4 * h)
+            continue;
+        inner++;
+        bad += fabs(n[2]) < 0.9;
+        mean_nz += fabs(n[2]);
+        double dx = out.xyz[3 * i] - q[0], dy = out.xyz[3 * i + 1] - q[1];
+        tang = fmax(tang, sqrt(dx * dx + dy * dy));
+    }
+    CHECK_MSG(bad == 0, "%zu bad normals", bad);
+    CHECK_MSG(mean_nz / inner > 0.99, "mean |n_z| %g", mean_nz / inner);
+    CHECK_MSG(tang < 0.5 * h, "tangential move %g h", tang / h);
+    tessel_cloud_free(&out);
+
+    /* Two passes smooth further than one. */
+    p.passes = 2;
+    CHECK(tessel_smooth(&in, &out, &p, NULL, NULL) == TESSEL_OK);
+    double after2 = rms_z(&out);
+    CHECK_MSG(after2 < after, "two passes %g, one pass %g", after2, after);
+    tessel_cloud_free(&out);
+    tessel_cloud_free(&in);
+}
+
+static void test_sphere(void)
+{
+    rng_state = 2;
+    tessel_cloud in, out;
+    const size_t n = 20000;
+    /* spacing ~ sqrt(4 pi / n) = 0.025; noise half of it. */
+    make_sphere(&in, n, 0.0125);
+    tessel_smooth_stats st;
+    CHECK(tessel_smooth(&in, &out, NULL, NULL, &st) == TESSEL_OK);
+    double before = rms_sphere(&in), after = rms_sphere(&out);
+    CHECK_MSG(after * 3.0 < before, "sphere rms %g -> %g", before, after);
+    /* Normals are radial, to within what noise of half the spacing allows
+     * on 24 neighbours. */
+    size_t bad = 0;
+    double mean_c = 0;
+    for (size_t i = 0; i < out.count; i++) {
+        const float *q = out.xyz + 3 * i, *nn = out.normals + 3 * i;
+        double r = sqrt((double)q[0] * q[0] + (double)q[1] * q[1] + (double)q[2] * q[2]);
+        double c = fabs(q[0] * nn[0] + q[1] * nn[1] + q[2] * nn[2]) / r;
+        bad += c < 0.9;
+        mean_c += c;
+    }
+    CHECK_MSG(bad == 0, "%zu normals not radial", bad);
+    CHECK_MSG(mean_c / n > 0.99, "mean |cos| %g", mean_c / n);
+    tessel_cloud_free(&out);
+
+    /* With input normals (outward), output normals agree with them. */
+    CHECK(tessel_cloud_copy(&out, &in) == TESSEL_OK);
+    tessel_cloud with_n = out;
+    with_n.normals = malloc(3 * n * sizeof(float));
+    for (size_t i = 0; i < n; i++) {
+        const float *q = in.xyz + 3 * i;
+        double r = sqrt((double)q[0] * q[0] + (double)q[1] * q[1] + (double)q[2] * q[2]);
+        for (int d = 0; d < 3; d++)
+            with_n.normals[3 * i + d] = (float)(q[d] / r);
+    }
+    tessel_cloud sm;
+    CHECK(tessel_smooth(&with_n, &sm, NULL, NULL, NULL) == TESSEL_OK);
+    size_t inward = 0;
+    for (size_t i = 0; i < n; i++) {
+        const float *q = sm.xyz + 3 * i, *nn = sm.normals + 3 * i;
+        inward += q[0] * nn[0] + q[1] * nn[1] + q[2] * nn[2] < 0;
+    }
+    CHECK_MSG(inward == 0, "%zu normals flipped against the input's", inward);
+    tessel_cloud_free(&sm);
+    tessel_cloud_free(&with_n);
+
+    /* A viewpoint at the centre: normals face inward. */
+    in.has_viewpoint = 1;
+    CHECK(tessel_smooth(&in, &sm, NULL, NULL, NULL) == TESSEL_OK);
+    size_t outward = 0;
+    for (size_t i = 0; i < n; i++) {
+        const float *q = sm.xyz + 3 * i, *nn = sm.normals + 3 * i;
+        outward += q[0] * nn[0] + q[1] * nn[1] + q[2] * nn[2] > 0;
+    }
+    CHECK_MSG(outward == 0, "%zu normals not facing the viewpoint", outward);
+    CHECK(sm.has_viewpoint == 1);
+    tessel_cloud_free(&sm);
+    tessel_cloud_free(&in);
+}
+
+/* Outliers near the surface (a layer 3 h above it, one for every four
+ * points, inside the neighbourhoods of k = 48) must not pull the smoothed
+ * plane, where plain weighted least squares is pulled by a third of h. Far
+ * outliers have no fit and stay where they are. */
+static void test_outliers(void)
+{
+    rng_state = 3;
+    const size_t side = 100, n_near = side * side / 4, n_far = 20;
+    const double h = 1.0 / side;
+    tessel_cloud plane, in;
+    make_plane(&plane, side, 0.0);
+    size_t n = plane.count + n_near + n_far;
+    CHECK(tessel_cloud_alloc(&in, n, 0, 0) == TESSEL_OK);
+    memcpy(in.xyz, plane.xyz, plane.count * 3 * sizeof(float));
+    for (size_t i = 0; i < n_near; i++) {
+        float *q = in.xyz + 3 * (plane.count + i);
+        q[0] = (float)urand();
+        q[1] = (float)urand();
+        q[2] = (float)(3.0 * h);
+    }
+    for (size_t i = 0; i < n_far; i++) {
+        float *q = in.xyz + 3 * (plane.count + n_near + i);
+        q[0] = (float)urand();
+        q[1] = (float)urand();
+        q[2] = (float)(50.0 * h * (1 + i));
+    }
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.spacing = h; /* the outliers would shrink the estimate */
+    p.k = 48;
+    p.sigma_rho = 1.0;
+    p.sigma_w = 2.0;
+    p.passes = 1;
+    tessel_smooth_stats st;
+    tessel_cloud robust, plain;
+    CHECK(tessel_smooth(&in, &robust, &p, NULL, &st) == TESSEL_OK);
+    CHECK_MSG(st.unfit == n_far, "unfit %zu", st.unfit);
+    p.sigma_rho = 1e6; /* rho(x) ~ x^2: ordinary weighted least squares */
+    CHECK(tessel_smooth(&in, &plain, &p, NULL, NULL) == TESSEL_OK);
+    double worst_r = 0, worst_p = 0;
+    /* Inliers away from the border (where a plane fit is unbiased). */
+    for (size_t i = 0; i < plane.count; i++) {
+        const float *q = in.xyz + 3 * i;
+        if (q[0] < 0.1 || q[0] > 0.9 || q[1] < 0.1 || q[1] > 0.9)
+            continue;
+        worst_r = fmax(worst_r, fabs(robust.xyz[3 * i + 2]));
+        worst_p = fmax(worst_p, fabs(plain.xyz[3 * i + 2]));
+    }
+    CHECK_MSG(worst_r < 0.02 * h, "robust fit pulled by %g h", worst_r / h);
+    CHECK_MSG(worst_p > 0.2 * h, "plain fit pulled only by %g h", worst_p / h);
+    /* Far outliers keep their position. */
+    for (size_t i = plane.count + n_near; i < n; i++)
+        CHECK(memcmp(robust.xyz + 3 * i, in.xyz + 3 * i, 3 * sizeof(float)) == 0);
+    tessel_cloud_free(&robust);
+    tessel_cloud_free(&plain);
+    tessel_cloud_free(&plane);
+    tessel_cloud_free(&in);
+}
+
+/* Sharp edges. On a noise-free cube, points within 2 h of an edge move
+ * off the surface (the neighbourhood straddles both faces), but with a
+ * small sigma_rho the robust norm discounts the other face and they move
+ * much less than with plain weighted least squares. With noise and one
+ * pass of sigma_w = 2 the error drops 3x on the faces and still drops near
+ * the edges (the defaults, two passes of 2.5, remove more noise on the
+ * faces and round the edges more: bench/bench_smooth.c measures both). */
+static void test_cube_edges(void)
+{
+    rng_state = 4;
+    const size_t side = 60;
+    const double h = 2.0 / side;
+    tessel_cloud clean, noisy, a, b;
+    make_cube(&clean, side, 0.0);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.spacing = h;
+    p.sigma_rho = 0.5;
+    p.sigma_w = 2.0;
+    p.passes = 1;
+    CHECK(tessel_smooth(&clean, &a, &p, NULL, NULL) == TESSEL_OK);
+    p.sigma_rho = 1e6;
+    CHECK(tessel_smooth(&clean, &b, &p, NULL, NULL) == TESSEL_OK);
+    double er = 0, ep = 0, far = 0;
+    size_t m = 0;
+    for (size_t i = 0; i < clean.count; i++) {
+        if (cube_edge_distance(clean.xyz + 3 * i) > 2 * h) {
+            far = fmax(far, fabs(cube_distance(a.xyz + 3 * i)));
+            continue;
+        }
+        double dr = cube_distance(a.xyz + 3 * i), dp = cube_distance(b.xyz + 3 * i);
+        er += dr * dr;
+        ep += dp * dp;
+        m++;
+    }
+    er = sqrt(er / m);
+    ep = sqrt(ep / m);
+    CHECK_MSG(er < 0.7 * ep, "edge rms robust %g h, plain %g h", er / h, ep / h);
+    CHECK_MSG(far < 0.05 * h, "flat parts moved by %g h", far / h);
+    tessel_cloud_free(&a);
+    tessel_cloud_free(&b);
+
+    make_cube(&noisy, side, 0.3 * h);
+    p = tessel_smooth_params_default();
+    p.sigma_w = 2.0; /* wider neighbourhoods and more passes round edges more */
+    p.passes = 1;
+    p.spacing = 0.7 * h; /* about what the estimate gives on a jittered grid */
+    CHECK(tessel_smooth(&noisy, &a, &p, NULL, NULL) == TESSEL_OK);
+    double e0 = 0, e1 = 0, f0 = 0, f1 = 0;
+    size_t me = 0, mf = 0;
+    for (size_t i = 0; i < noisy.count; i++) {
+        double d0 = cube_distance(noisy.xyz + 3 * i), d1 = cube_distance(a.xyz + 3 * i);
+        double e = cube_edge_distance(clean.xyz + 3 * i);
+        if (e <= 2 * h) {
+            e0 += d0 * d0, e1 += d1 * d1, me++;
+        } else if (e > 4 * h) {
+            f0 += d0 * d0, f1 += d1 * d1, mf++;
+        }
+    }
+    e0 = sqrt(e0 / me), e1 = sqrt(e1 / me), f0 = sqrt(f0 / mf), f1 = sqrt(f1 / mf);
+    CHECK_MSG(f1 * 3 < f0, "faces rms %g -> %g", f0, f1);
+    CHECK_MSG(e1 < e0, "edges rms %g -> %g", e0, e1);
+    tessel_cloud_free(&a);
+    tessel_cloud_free(&noisy);
+    tessel_cloud_free(&clean);
+}
+
+static void test_threads_and_order(void)
+{
+    rng_state = 5;
+    tessel_cloud in, o1, o2, o3;
+    make_sphere(&in, 8000, 0.02);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.passes = 2;
+    p.threads = 1;
+    CHECK(tessel_smooth(&in, &o1, &p, NULL, NULL) == TESSEL_OK);
+    p.threads = 2;
+    CHECK(tessel_smooth(&in, &o2, &p, NULL, NULL) == TESSEL_OK);
+    p.threads = 3;
+    CHECK(tessel_smooth(&in, &o3, &p, NULL, NULL) == TESSEL_OK);
+    size_t bytes = in.count * 3 * sizeof(float);
+    CHECK(memcmp(o1.xyz, o2.xyz, bytes) == 0 && memcmp(o1.xyz, o3.xyz, bytes) == 0);
+    CHECK(memcmp(o1.normals, o2.normals, bytes) == 0 &&
+          memcmp(o1.normals, o3.normals, bytes) == 0);
+    tessel_cloud_free(&o2);
+    tessel_cloud_free(&o3);
+
+    /* Reversing the input reverses the output, bit for bit (the spacing is
+     * given: its estimate samples points by position in the array). */
+    p.spacing = 0.03;
+    tessel_cloud_free(&o1);
+    CHECK(tessel_smooth(&in, &o1, &p, NULL, NULL) == TESSEL_OK);
+    tessel_cloud rev;
+    CHECK(tessel_cloud_alloc(&rev, in.count, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < in.count; i++)
+        memcpy(rev.xyz + 3 * i, in.xyz + 3 * (in.count - 1 - i), 3 * sizeof(float));
+    CHECK(tessel_smooth(&rev, &o2, &p, NULL, NULL) == TESSEL_OK);
+    size_t diff = 0;
+    for (size_t i = 0; i < in.count; i++)
+        diff += memcmp(o1.xyz + 3 * i, o2.xyz + 3 * (in.count - 1 - i), 3 * sizeof(float)) != 0;
+    CHECK_MSG(diff == 0, "%zu points differ after reversing the input", diff);
+    tessel_cloud_free(&o1);
+    tessel_cloud_free(&o2);
+    tessel_cloud_free(&rev);
+    tessel_cloud_free(&in);
+}
+
+static void test_projector(void)
+{
+    rng_state = 6;
+    tessel_cloud plane;
+    const size_t side = 50;
+    make_plane(&plane, side, 0.0);
+    tessel_projector *pr = NULL;
+    CHECK(tessel_projector_create(&pr, &plane, NULL) == TESSEL_OK);
+    double h = tessel_projector_spacing(pr);
+    CHECK(h > 0.3 / side && h < 1.5 / side);
+    float q[3] = {0.5f, 0.5f, (float)(0.7 * h)}, o[3], nn[3];
+    uint32_t its = 0;
+    CHECK(tessel_project(pr, q, o, nn, &its) == TESSEL_OK);
+    CHECK_MSG(fabs(o[2]) < 1e-6 && fabs(o[0] - 0.5) < 1e-6 && fabs(o[1] - 0.5) < 1e-6,
+              "projected to %g %g %g", o[0], o[1], o[2]);
+    CHECK(fabs(fabs(nn[2]) - 1.0) < 1e-6);
+    CHECK(its >= 1);
+    /* Far from the cloud: no fit, the point stays. */
+    float far[3] = {0.5f, 0.5f, 10.0f};
+    CHECK(tessel_project(pr, far, o, nn, &its) == TESSEL_ERR_TOO_FEW_POINTS);
+    CHECK(memcmp(o, far, sizeof o) == 0 && its == 0);
+    CHECK(fabs(sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]) - 1.0) < 1e-5);
+    tessel_projector_destroy(pr);
+    tessel_projector_destroy(NULL);
+    tessel_cloud_free(&plane);
+}
+
+/* A smoothing pass finds neighbours with its own grid; the projector uses
+ * the kd-tree. Both must give the same neighbours, hence the same bits, on
+ * a cloud with uneven density (sparse parts need the outer ring of cells,
+ * a dense clump overflows the block buffer) and exact duplicates (ties). */
+static void test_pass_matches_projector(void)
+{
+    rng_state = 9;
+    const size_t n_plane = 6000, n_clump = 3000, n_dup = 400, n_sparse = 300;
+    size_t n = n_plane + n_clump + n_dup + n_sparse;
+    tessel_cloud c, out;
+    CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+    size_t i = 0;
+    for (; i < n_plane; i++) { /* wavy sheet */
+        double x = urand(), y = urand();
+        c.xyz[3 * i] = (float)x, c.xyz[3 * i + 1] = (float)y;
+        c.xyz[3 * i + 2] = (float)(0.05 * sin(6 * x) + 0.002 * gauss());
+    }
+    for (; i < n_plane + n_clump; i++) { /* 100x denser patch */
+        c.xyz[3 * i] = (float)(0.5 + 0.05 * urand());
+        c.xyz[3 * i + 1] = (float)(0.5 + 0.05 * urand());
+        c.xyz[3 * i + 2] = (float)(0.05 * sin(3.0) + 0.001 * gauss());
+    }
+    for (; i < n_plane + n_clump + n_dup; i++) /* 40 points x 10 copies */
+        memcpy(c.xyz + 3 * i, c.xyz + 3 * ((i - n_plane - n_clump) / 10 * 37), 3 * sizeof(float));
+    for (; i < n; i++) { /* sparse sheet beside it */
+        c.xyz[3 * i] = (float)(1.2 + 0.6 * urand());
+        c.xyz[3 * i + 1] = (float)urand();
+        c.xyz[3 * i + 2] = (float)(0.003 * gauss());
+    }
+    /* Default scales; then a wide Gaussian, where the grid's cells are
+     * smaller than half the cut-off and far neighbours come from a tree. */
+    for (int wide = 0; wide < 2; wide++) {
+        tessel_smooth_params p = tessel_smooth_params_default();
+        p.spacing = 0.01;
+        p.passes = 1;
+        if (wide)
+            p.sigma_w = 8;
+        tessel_smooth_stats st;
+        CHECK(tessel_smooth(&c, &out, &p, NULL, &st) == TESSEL_OK);
+        tessel_projector *pr = NULL;
+        CHECK(tessel_projector_create(&pr, &c, &p) == TESSEL_OK);
+        size_t diff = 0, ndiff = 0, unfit = 0;
+        for (i = 0; i < n; i++) {
+            float o[3], nn[3];
+            tessel_status ps = tessel_project(pr, c.xyz + 3 * i, o, nn, NULL);
+            unfit += ps != TESSEL_OK;
+            diff += memcmp(o, out.xyz + 3 * i, sizeof o) != 0;
+            ndiff += ps == TESSEL_OK && memcmp(nn, out.normals + 3 * i, sizeof nn) != 0;
+        }
+        CHECK_MSG(diff == 0 && ndiff == 0, "sigma_w %g: %zu of %zu points (%zu normals) differ",
+                  p.sigma_w, diff, n, ndiff);
+        CHECK(unfit == st.unfit);
+        CHECK(st.unfit < n_sparse); /* the sparse sheet has some fits */
+        tessel_projector_destroy(pr);
+        tessel_cloud_free(&out);
+    }
+    tessel_cloud_free(&c);
+}
+
+/* Collinear points have no plane: every point is unfit and stays. */
+static void test_degenerate(void)
+{
+    tessel_cloud line, out;
+    CHECK(tessel_cloud_alloc(&line, 100, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < 100; i++)
+        line.xyz[3 * i] = (float)i;
+    tessel_smooth_stats st;
+    CHECK(tessel_smooth(&line, &out, NULL, NULL, &st) == TESSEL_OK);
+    CHECK(st.unfit == 100 * tessel_smooth_params_default().passes);
+    CHECK(memcmp(out.xyz, line.xyz, 300 * sizeof(float)) == 0);
+    tessel_cloud_free(&out);
+
+    /* All points equal: no spacing, no smoothing. */
+    memset(line.xyz, 0, 300 * sizeof(float));
+    CHECK(tessel_smooth(&line, &out, NULL, NULL, NULL) == TESSEL_ERR_TOO_FEW_POINTS);
+    CHECK(out.xyz == NULL && out.count == 0);
+    line.count = 2;
+    CHECK(tessel_smooth(&line, &out, NULL, NULL, NULL) == TESSEL_ERR_TOO_FEW_POINTS);
+    line.count = 100;
+    tessel_cloud_free(&line);
+}
+
+static void test_args(void)
+{
+    tessel_cloud c, out;
+    rng_state = 7;
+    make_plane(&c, 10, 0.0);
+    tessel_smooth_params bad[8];
+    for (int i = 0; i < 8; i++)
+        bad[i] = tessel_smooth_params_default();
+    bad[0].k = 2;
+    bad[1].k = 1000;
+    bad[2].sigma_rho = 0;
+    bad[3].sigma_w = NAN;
+    bad[4].passes = 0;
+    bad[5].tolerance = -1;
+    bad[6].min_neighbors = 30; /* > k */
+    bad[7].spacing = -1;
+    for (int i = 0; i < 8; i++)
+        CHECK_MSG(tessel_smooth(&c, &out, &bad[i], NULL, NULL) == TESSEL_ERR_INVALID_ARG,
+                  "bad params %d accepted", i);
+    CHECK(tessel_smooth(NULL, &out, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tessel_smooth(&c, NULL, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    tessel_projector *pr = (tessel_projector *)&c;
+    CHECK(tessel_projector_create(&pr, &c, &bad[0]) == TESSEL_ERR_INVALID_ARG && pr == NULL);
+    tessel_cloud_free(&c);
+}
+
+static int cancel_at_half(void *user, const char *stage, double f)
+{
+    (void)stage;
+    *(int *)user += 1;
+    return f >= 0.5;
+}
+
+static void test_cancel(void)
+{
+    rng_state = 8;
+    tessel_cloud c, out;
+    make_plane(&c, 200, 0.001);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.passes = 2;
+    int calls = 0;
+    tessel_callbacks cb = {cancel_at_half, NULL, &calls};
+    CHECK(tessel_smooth(&c, &out, &p, &cb, NULL) == TESSEL_ERR_CANCELLED);
+    CHECK(out.xyz == NULL && calls >= 2);
+    tessel_cloud_free(&c);
+}
+
+int main(void)
+{
+    test_plane();
+    test_sphere();
+    test_outliers();
+    test_cube_edges();
+    test_threads_and_order();
+    test_projector();
+    test_pass_matches_projector();
+    test_degenerate();
+    test_args();
+    test_cancel();
+    return TEST_SUMMARY();
+}
