@@ -11,6 +11,7 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
+    {"info", cmd_info, "describe a point cloud or mesh file"},
     {"convert", cmd_convert, "convert between file formats"},
     {"check", cmd_check, "check a mesh: manifold, orientation, intersections, distances"},
     {"render", cmd_render, "render a mesh or point cloud to PNG"},
