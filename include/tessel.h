@@ -1000,12 +1000,15 @@ typedef struct tessel_front_params {
                                 k nearest neighbours), oriented as the
                                 surface took it: no fold-backs on noisy
                                 points; default 60 (0..180; 180 disables) */
-    uint32_t max_hole_edges; /* when the fronts stop, border loops of at
-                                most this many edges are closed by clipping
-                                ears that keep the surface valid (a real
-                                border, convex as seen from its surface,
-                                has no such ears); default 20 (0..64; 0
-                                disables) */
+    double max_hole_radius;  /* when the fronts stop, a border loop is
+                                closed by clipping ears that keep the surface
+                                valid if its area over half its perimeter
+                                (the radius of a round hole, half the width
+                                of a slit) is at most this many times the
+                                mean spacing of its vertices (as d_x above):
+                                holes the front left, not holes of the
+                                sampled surface, which enclose empty space;
+                                default 2.5 (>= 0; 0 disables) */
     int orient;              /* 1 (default): every closed component faces
                                 outward (positive volume); open components
                                 agree with the points' normals when they have
@@ -1044,6 +1047,110 @@ TESSEL_API tessel_status tessel_advancing_front(const tessel_cloud *points,
                                                 const tessel_callbacks *callbacks,
                                                 tessel_mesh *mesh,
                                                 tessel_front_stats *stats);
+
+/* Refinement (section 2.5). For every edge uv of the mesh (in each round),
+ * with midpoint m and normal n_m the normalised sum of the vertex normals of
+ * u and v (area-weighted normals of their stars), the offset
+ * a = mean over the k nearest cloud points p of (p - m).n_m measures how far
+ * the edge is from the cloud. When |a| > eps the edge is split at
+ * Q(m + a n_m), the robust projection onto the cloud, and so are its one or
+ * two triangles, unless one of them is too skinny. Then diagonals are
+ * flipped wherever the other diagonal of the two triangles is shorter. Every
+ * split and flip keeps the mesh manifold, oriented and free of
+ * self-intersections (checked exactly; an operation that would break it is
+ * skipped). */
+typedef struct tessel_refine_params {
+    uint32_t rounds;          /* refinement rounds; default 2 (the paper
+                                 shows two; 0..20) */
+    uint32_t k;               /* cloud neighbours of the midpoint for a;
+                                 default 16 (1..256) */
+    double min_offset;        /* eps, multiple of the cloud's spacing h:
+                                 edges with |a| <= eps stay; default 0.1
+                                 (>= 0) */
+    double min_edge_length;   /* multiple of h: shorter edges are not split
+                                 (below the sampling there is nothing to
+                                 fit); default 1.5 (>= 0) */
+    double min_edge_ratio;    /* a triangle whose shortest edge is below
+                                 this fraction of its longest is not divided;
+                                 default 0.2 (0..1) */
+    int flip;                 /* 1 (default): flip diagonals after each
+                                 round; 0: splits only */
+    int threads;              /* 0 = OpenMP default (honours
+                                 OMP_NUM_THREADS); the result does not depend
+                                 on it */
+} tessel_refine_params;
+TESSEL_API tessel_refine_params tessel_refine_params_default(void);
+
+typedef struct tessel_refine_stats {
+    size_t splits;            /* edges split, all rounds */
+    size_t flips;             /* diagonals flipped */
+    size_t far_edges;         /* edges whose |a| exceeded eps */
+    size_t skipped_skinny;    /* splits skipped for a too skinny triangle */
+    size_t skipped_invalid;   /* splits or flips skipped because they would
+                                 fold the mesh or make it self-intersect */
+    size_t unfit;             /* splits skipped because Q had no fit there */
+} tessel_refine_stats;
+
+/* Refines mesh in place against cloud (normally the smoothed cloud, in the
+ * same local frame: equal offsets). projector is Q over that cloud (from
+ * tessel_projector_create); NULL makes one with default parameters. New
+ * vertices are appended after the existing ones (normals, when the mesh has
+ * them, set from the stars at the end for every vertex; colours averaged
+ * from the edge's ends). params and stats may be NULL. The mesh must be
+ * manifold and consistently oriented (as tessel_advancing_front makes it):
+ * TESSEL_ERR_INVALID_ARG otherwise. On error the mesh is left as it was. */
+TESSEL_API tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
+                                       const tessel_projector *projector,
+                                       const tessel_refine_params *params,
+                                       const tessel_callbacks *callbacks,
+                                       tessel_refine_stats *stats);
+
+/* The whole pipeline (src/smooth_pipeline.c): smooth -> cluster -> reduce
+ * -> triangulate -> refine, for noisy clouds without normals. The spacing h
+ * is estimated once (unless a stage's params give one) and used by every
+ * stage. */
+typedef struct tessel_smooth_recon_params {
+    tessel_smooth_params smooth;     /* step 1 (its k, sigmas and iteration
+                                        limits also define the projection
+                                        operator of step 5); defaults as
+                                        tessel_smooth_params_default() but
+                                        passes 1, as in the paper */
+    tessel_simplify_params simplify; /* steps 2-3 */
+    tessel_front_params front;       /* step 4 */
+    tessel_refine_params refine;     /* step 5 (rounds 0: the triangulation
+                                        of the representatives as is) */
+    int threads;                     /* every stage's thread count when not
+                                        0; 0 (default) leaves each stage's */
+} tessel_smooth_recon_params;
+TESSEL_API tessel_smooth_recon_params tessel_smooth_recon_params_default(void);
+
+typedef struct tessel_smooth_recon_stats {
+    double spacing;                  /* h, world units */
+    size_t points;                   /* input points */
+    size_t representatives;          /* points triangulated */
+    size_t vertices, triangles;      /* in the result */
+    size_t border_edges;             /* edges with one triangle */
+    /* Wall-clock seconds per stage (as the paper's Table 1) and in all. */
+    double seconds_spacing, seconds_smooth, seconds_simplify, seconds_front,
+        seconds_refine, seconds_total;
+    tessel_smooth_stats smooth;
+    tessel_simplify_stats simplify;
+    tessel_front_stats front;
+    tessel_refine_stats refine;
+} tessel_smooth_recon_stats;
+
+/* Reconstructs a surface from a noisy cloud. *mesh gets the refined mesh:
+ * vertices are representatives and refinement points (not input points),
+ * every one on a triangle, with unit normals from their stars (outward on
+ * closed components; on open ones they follow the input's normals or
+ * viewpoint when it has them) and mean colours when the cloud has them.
+ * Manifold, consistently oriented, no self-intersection. params and stats
+ * may be NULL. On error *mesh is zeroed. */
+TESSEL_API tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
+                                                   const tessel_smooth_recon_params *params,
+                                                   const tessel_callbacks *callbacks,
+                                                   tessel_mesh *mesh,
+                                                   tessel_smooth_recon_stats *stats);
 
 #ifdef __cplusplus
 }

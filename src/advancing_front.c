@@ -44,10 +44,11 @@
 
 #define NONE TESSEL_NONE
 #define MAX_K 64
-#define MAX_HOLE_EDGES 64
+/* Holes with more edges are never closed. */
+#define MAX_HOLE_EDGES 4096
 /* d_x, the local spacing of (iii): mean distance to this many nearest
  * distinct neighbours. */
-#define SPACING_NEIGHBOURS 6
+#define SPACING_NEIGHBOURS 4
 
 enum { EDGE_ACTIVE = 0, EDGE_DEAD = 1, EDGE_CLOSED = 2 };
 /* A dead edge is reconsidered when its neighbourhood changes, this often. */
@@ -56,7 +57,7 @@ enum { EDGE_ACTIVE = 0, EDGE_DEAD = 1, EDGE_CLOSED = 2 };
  * front grow over itself, so they get looser limits: the sharpest fold
  * along a shared edge, and the largest angle to the vertices' normals. */
 #define CLOSING_FOLD_DEG 150.0
-#define CLOSING_NORMAL_DEG 80.0
+#define CLOSING_NORMAL_DEG 100.0
 /* Holes of at most this many edges are closed by any valid ears (the
  * surface stays manifold and free of self-intersections; folds up to
  * LAST_FOLD_DEG). */
@@ -79,6 +80,7 @@ typedef struct af_edge {
     uint32_t tri;        /* the triangle it belongs to */
     uint8_t state;
     uint8_t retries;
+    uint32_t mark;       /* hole-filling pass that last visited it */
 } af_edge;
 
 typedef struct af_cand {
@@ -107,7 +109,11 @@ typedef struct af {
     /* derived parameters */
     double cos_phi, theta0, theta_step, theta_max, cos_theta_max, eps1, cos_normal;
     double cos_closing_fold, cos_closing_normal, cos_last_fold;
-    size_t max_hole_edges;
+    double max_hole_radius;
+    uint32_t pass;       /* hole-filling pass, for edge marks */
+    uint32_t *scratch_u; /* hole filling: corners */
+    double *scratch_d;
+    size_t scratch_cap;
     /* mesh */
     uint32_t *tri;   /* 3 per triangle */
     af_tinfo *ti;    /* per triangle: normal and box */
@@ -135,7 +141,7 @@ tessel_front_params tessel_front_params_default(void)
     p.max_edge_ratio = 3.0;
     p.max_angle_deg = 140.0;
     p.normal_angle_deg = 60.0;
-    p.max_hole_edges = 20;
+    p.max_hole_radius = 2.5;
     p.orient = 1;
     p.threads = 0;
     return p;
@@ -609,6 +615,7 @@ static tessel_status new_edge(af *s, uint32_t from, uint32_t to, uint32_t tri, u
     e->tri = tri;
     e->state = EDGE_ACTIVE;
     e->retries = 0;
+    e->mark = 0;
     *id = id_;
     return push_edge(s, id_);
 }
@@ -1492,6 +1499,8 @@ static void af_free(af *s)
     free(s->vout);
     free(s->e);
     free(s->queue);
+    free(s->scratch_u);
+    free(s->scratch_d);
     tsl_trigrid_free(&s->grid);
 }
 
@@ -1589,19 +1598,55 @@ done:
     return st;
 }
 
-/* Closes the border loop through edge id if it has at most max_hole_edges
- * edges, clipping ears (the sharpest corner first) that pass the closing
- * checks; stops at the first corner with no valid ear. */
-static tessel_status fill_hole(af *s, uint32_t id)
+/* Whether the border loop through edge id (marked with the current pass)
+ * is a hole to close: its area over half its perimeter (the radius of a
+ * round hole, half the width of a slit) is at most max_hole_radius times
+ * the mean spacing of its vertices. A hole the front left is a few
+ * spacings wide or a slit; a real border encloses empty space. */
+static bool small_hole(af *s, uint32_t id, size_t *len)
 {
+    double p0[3], area[3] = {0.0, 0.0, 0.0}, perimeter = 0.0, spacing = 0.0;
+    point(s, s->e[id].from, p0);
+    size_t n = 0;
+    uint32_t e = id;
+    do {
+        s->e[e].mark = s->pass;
+        double a[3], b[3], c[3], d[3];
+        point(s, s->e[e].from, a);
+        point(s, s->e[e].to, b);
+        tsl_sub(b, a, d);
+        perimeter += tsl_norm(d);
+        spacing += s->nnd[s->e[e].from];
+        tsl_sub(a, p0, a);
+        tsl_sub(b, p0, b);
+        tsl_cross(a, b, c);
+        for (int k = 0; k < 3; k++)
+            area[k] += 0.5 * c[k];
+        n++;
+        e = s->e[e].next;
+    } while (e != id);
+    *len = n;
+    if (n > MAX_HOLE_EDGES)
+        return false;
+    return 2.0 * tsl_norm(area) / perimeter <= s->max_hole_radius * spacing / (double)n;
+}
+
+/* Closes the hole through edge id (len edges) by clipping ears, the
+ * sharpest corner first, each passing the closing checks (tiny holes: any
+ * valid ear); stops at the first state with no valid ear. */
+static tessel_status fill_hole(af *s, uint32_t id, size_t len)
+{
+    if (len > s->scratch_cap) {
+        size_t c1 = s->scratch_cap, c2 = s->scratch_cap;
+        if (tsl_grow((void **)&s->scratch_u, &c1, len, sizeof *s->scratch_u) ||
+            tsl_grow((void **)&s->scratch_d, &c2, len, sizeof *s->scratch_d))
+            return TESSEL_ERR_NOMEM;
+        s->scratch_cap = c1 < c2 ? c1 : c2;
+    }
+    uint32_t *order = s->scratch_u;
+    double *cosv = s->scratch_d;
     for (;;) {
-        size_t len = 1;
-        for (uint32_t e = s->e[id].next; e != id; e = s->e[e].next)
-            if (++len > s->max_hole_edges)
-                return TESSEL_OK;
-        /* Try corners from the sharpest on. */
-        uint32_t order[MAX_HOLE_EDGES];
-        double cosv[MAX_HOLE_EDGES];
+        /* Corners by decreasing cosine (sharpest first). */
         size_t m = 0;
         uint32_t e = id;
         do {
@@ -1622,7 +1667,7 @@ static tessel_status fill_hole(af *s, uint32_t id)
             cosv[q] = c;
             order[q] = e;
             e = in->next;
-        } while (e != id && m < MAX_HOLE_EDGES);
+        } while (e != id && m < len);
         bool done = false;
         for (size_t i = 0; i < m && !done; i++) {
             uint32_t eid = order[i];
@@ -1634,8 +1679,8 @@ static tessel_status fill_hole(af *s, uint32_t id)
             const af_edge *ed = &s->e[eid];
             if (!make_tri(s, ed->to, ed->from, t, &x))
                 continue;
-            /* The last triangle of a hole only needs to keep the surface
-             * valid; earlier ears keep the closing limits. */
+            /* Tiny holes only need to stay valid; larger ones keep the
+             * closing limits. */
             bool tiny = m <= TINY_HOLE_EDGES;
             x.cos_fold = tiny ? s->cos_last_fold : s->cos_closing_fold;
             x.exact_only = tiny;
@@ -1654,8 +1699,9 @@ static tessel_status fill_hole(af *s, uint32_t id)
             s->stats.hole_triangles++;
             if (kind == PLAN_HOLE)
                 return TESSEL_OK;
-            /* The new edge a->t replaced eid and its successor. */
+            /* The new edge a->t took the place of eid and its successor. */
             id = s->e[next].prev;
+            len--;
             done = true;
         }
         if (!done)
@@ -1665,12 +1711,17 @@ static tessel_status fill_hole(af *s, uint32_t id)
 
 static tessel_status fill_holes(af *s)
 {
-    if (s->max_hole_edges < 3)
+    if (!(s->max_hole_radius > 0.0))
         return TESSEL_OK;
-    for (size_t i = 0; i < s->ne; i++) {
-        if (s->e[i].state == EDGE_CLOSED)
+    s->pass++;
+    size_t count = s->ne;
+    for (size_t i = 0; i < count; i++) {
+        if (s->e[i].state == EDGE_CLOSED || s->e[i].mark == s->pass)
             continue;
-        tessel_status st = fill_hole(s, (uint32_t)i);
+        size_t len;
+        if (!small_hole(s, (uint32_t)i, &len))
+            continue;
+        tessel_status st = fill_hole(s, (uint32_t)i, len);
         if (st)
             return st;
     }
@@ -1724,7 +1775,7 @@ static tessel_status check_params(const tessel_front_params *p)
         !(p->max_edge_ratio > 1.0 && isfinite(p->max_edge_ratio)) ||
         !(p->max_angle_deg >= 60.0 && p->max_angle_deg <= 180.0) ||
         !(p->normal_angle_deg > 0.0 && p->normal_angle_deg <= 180.0) ||
-        p->max_hole_edges > MAX_HOLE_EDGES)
+        !(p->max_hole_radius >= 0.0 && isfinite(p->max_hole_radius)))
         return TESSEL_ERR_INVALID_ARG;
     return TESSEL_OK;
 }
@@ -1770,7 +1821,7 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
     s.cos_closing_fold = cos(CLOSING_FOLD_DEG * deg);
     s.cos_closing_normal = cos(CLOSING_NORMAL_DEG * deg);
     s.cos_last_fold = cos(LAST_FOLD_DEG * deg);
-    s.max_hole_edges = p.max_hole_edges;
+    s.max_hole_radius = p.max_hole_radius;
 
     if ((st = tsl_progress(callbacks, "front", 0.0)))
         return st;

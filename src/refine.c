@@ -1,0 +1,865 @@
+/* Mesh refinement against a point cloud: step 5 of Mederos, Velho & de
+ * Figueiredo 2003, "Smooth surface reconstruction from noisy clouds",
+ * section 2.5.
+ *
+ * Each round looks at every edge uv: its midpoint m, the normal n_m (the
+ * normalised sum of u's and v's normals, each the area-weighted mean normal
+ * of its star) and a = mean over the k nearest cloud points p of
+ * (p - m).n_m, the offset along n_m of the least-squares closest point to
+ * the cloud. When |a| > eps the edge is split at Q(m + a n_m), Q being the
+ * robust projection operator of section 2.1, and so are its one or two
+ * triangles (a-u-v becomes a-u-m' and a-m'-v), unless one of them is too
+ * skinny (shortest / longest edge below a ratio). Then diagonals are
+ * flipped wherever the other diagonal of two adjacent triangles is shorter.
+ *
+ * The per-edge work (neighbour search, fit, projection) runs in parallel;
+ * splits and flips are then applied one at a time in a fixed order (longest
+ * edge first), each checked before it is kept: its new triangles must not
+ * turn by more than 60 degrees from the ones they replace, and must not
+ * intersect any triangle of the mesh beyond shared vertices and edges
+ * (exact predicates, the advancing front's triangle hash grid). A split or
+ * flip that fails is undone, so the mesh stays manifold, oriented and free
+ * of self-intersections. */
+#include "internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#define NONE TESSEL_NONE
+#define MAX_K 256
+/* New triangles may turn at most this much from the ones they replace. */
+#define MAX_TURN_DEG 60.0
+/* Flip passes per round at most (each pass flips every improvable edge). */
+#define MAX_FLIP_PASSES 6
+
+tessel_refine_params tessel_refine_params_default(void)
+{
+    tessel_refine_params p;
+    memset(&p, 0, sizeof p);
+    p.rounds = 2;
+    p.k = 16;
+    p.min_offset = 0.1;
+    p.min_edge_length = 1.5;
+    p.min_edge_ratio = 0.2;
+    p.flip = 1;
+    p.threads = 0;
+    return p;
+}
+
+/* Open-addressing map from an undirected edge to one of its half-edges,
+ * with backward-shift deletion. */
+typedef struct edge_map {
+    uint64_t *keys; /* (min << 32 | max) + 1; 0 = empty */
+    uint32_t *vals;
+    size_t slots, count;
+} edge_map;
+
+typedef struct rf {
+    float *xyz;
+    uint8_t *rgb; /* NULL when the mesh has no colours */
+    size_t nv, cap_v;
+    uint32_t *tri;  /* 3 per triangle */
+    uint32_t *twin; /* per half-edge 3t+i (tri[3t+i] -> tri[3t+(i+1)%3]) */
+    size_t nt, cap_t;
+    edge_map edges;
+    tsl_trigrid grid;
+    double cos_turn;
+    tessel_refine_stats stats;
+} rf;
+
+static inline uint64_t edge_key(uint32_t a, uint32_t b)
+{
+    uint64_t lo = a < b ? a : b, hi = a < b ? b : a;
+    return (lo << 32 | hi) + 1;
+}
+
+static inline size_t map_slot(const edge_map *m, uint64_t key)
+{
+    uint64_t h = key * 0x9E3779B97F4A7C15ULL;
+    return (size_t)(h ^ (h >> 31)) & (m->slots - 1);
+}
+
+static tessel_status map_init(edge_map *m, size_t expected)
+{
+    m->slots = 64;
+    while (m->slots < 2 * expected)
+        m->slots *= 2;
+    m->count = 0;
+    m->keys = tsl_calloc_array(m->slots, sizeof *m->keys);
+    m->vals = tsl_alloc_array(m->slots, sizeof *m->vals);
+    return m->keys && m->vals ? TESSEL_OK : TESSEL_ERR_NOMEM;
+}
+
+static void map_free(edge_map *m)
+{
+    free(m->keys);
+    free(m->vals);
+    memset(m, 0, sizeof *m);
+}
+
+static uint32_t map_get(const edge_map *m, uint32_t a, uint32_t b)
+{
+    uint64_t key = edge_key(a, b);
+    for (size_t s = map_slot(m, key); m->keys[s]; s = (s + 1) & (m->slots - 1))
+        if (m->keys[s] == key)
+            return m->vals[s];
+    return NONE;
+}
+
+static tessel_status map_put(edge_map *m, uint32_t a, uint32_t b, uint32_t he);
+
+static tessel_status map_grow(edge_map *m)
+{
+    edge_map bigger;
+    tessel_status st = map_init(&bigger, m->slots);
+    if (st) {
+        map_free(&bigger);
+        return st;
+    }
+    for (size_t s = 0; s < m->slots; s++)
+        if (m->keys[s]) {
+            uint64_t key = m->keys[s];
+            size_t t = map_slot(&bigger, key);
+            while (bigger.keys[t])
+                t = (t + 1) & (bigger.slots - 1);
+            bigger.keys[t] = key;
+            bigger.vals[t] = m->vals[s];
+            bigger.count++;
+        }
+    map_free(m);
+    *m = bigger;
+    return TESSEL_OK;
+}
+
+/* Sets the half-edge of {a, b}, adding the edge if new. */
+static tessel_status map_put(edge_map *m, uint32_t a, uint32_t b, uint32_t he)
+{
+    if (2 * (m->count + 1) > m->slots) {
+        tessel_status st = map_grow(m);
+        if (st)
+            return st;
+    }
+    uint64_t key = edge_key(a, b);
+    size_t s = map_slot(m, key);
+    while (m->keys[s] && m->keys[s] != key)
+        s = (s + 1) & (m->slots - 1);
+    if (!m->keys[s]) {
+        m->keys[s] = key;
+        m->count++;
+    }
+    m->vals[s] = he;
+    return TESSEL_OK;
+}
+
+static void map_del(edge_map *m, uint32_t a, uint32_t b)
+{
+    uint64_t key = edge_key(a, b);
+    size_t s = map_slot(m, key);
+    while (m->keys[s] && m->keys[s] != key)
+        s = (s + 1) & (m->slots - 1);
+    if (!m->keys[s])
+        return;
+    /* Backward shift: pull later entries of the probe run into the gap. */
+    size_t gap = s;
+    for (size_t j = (gap + 1) & (m->slots - 1); m->keys[j]; j = (j + 1) & (m->slots - 1)) {
+        size_t home = map_slot(m, m->keys[j]);
+        bool movable = gap <= j ? (home <= gap || home > j) : (home <= gap && home > j);
+        if (movable) {
+            m->keys[gap] = m->keys[j];
+            m->vals[gap] = m->vals[j];
+            gap = j;
+        }
+    }
+    m->keys[gap] = 0;
+    m->count--;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Geometry helpers                                                          */
+/* ------------------------------------------------------------------------ */
+
+static inline void vtx(const rf *r, uint32_t v, double out[3])
+{
+    tsl_load(r->xyz + 3 * (size_t)v, out);
+}
+
+static inline uint32_t he_from(const rf *r, uint32_t h) { return r->tri[h]; }
+static inline uint32_t he_to(const rf *r, uint32_t h)
+{
+    return r->tri[h - h % 3 + (h % 3 + 1) % 3];
+}
+
+/* Cross product of triangle t's edges (twice its area along its normal). */
+static void tri_cross(const rf *r, uint32_t t, double n[3])
+{
+    double a[3], b[3], c[3], u[3], v[3];
+    vtx(r, r->tri[3 * (size_t)t], a);
+    vtx(r, r->tri[3 * (size_t)t + 1], b);
+    vtx(r, r->tri[3 * (size_t)t + 2], c);
+    tsl_sub(b, a, u);
+    tsl_sub(c, a, v);
+    tsl_cross(u, v, n);
+}
+
+static void tri_box(const rf *r, uint32_t t, double lo[3], double hi[3])
+{
+    for (int c = 0; c < 3; c++) {
+        lo[c] = INFINITY;
+        hi[c] = -INFINITY;
+    }
+    for (int i = 0; i < 3; i++) {
+        const float *p = r->xyz + 3 * (size_t)r->tri[3 * (size_t)t + i];
+        for (int c = 0; c < 3; c++) {
+            lo[c] = p[c] < lo[c] ? p[c] : lo[c];
+            hi[c] = p[c] > hi[c] ? p[c] : hi[c];
+        }
+    }
+}
+
+static tessel_status grid_add(rf *r, uint32_t t)
+{
+    double lo[3], hi[3];
+    tri_box(r, t, lo, hi);
+    return tsl_trigrid_insert(&r->grid, t, lo, hi);
+}
+
+/* New triangle t keeps to its predecessor's normal (unit old_n) and does
+ * not intersect any other triangle of the mesh; the triangles in news[]
+ * (being changed in the same operation) are tested against each other
+ * explicitly, since the grid knows them at their old place. */
+static tessel_status check_new(rf *r, uint32_t t, const double old_n[3], const uint32_t *news,
+                               int count, bool *ok)
+{
+    *ok = false;
+    double n[3];
+    tri_cross(r, t, n);
+    if (!tsl_normalize(n) || tsl_dot(n, old_n) < r->cos_turn)
+        return TESSEL_OK;
+    double p[3][3];
+    const uint32_t *tv = r->tri + 3 * (size_t)t;
+    for (int i = 0; i < 3; i++)
+        vtx(r, tv[i], p[i]);
+    const double *pp[3] = {p[0], p[1], p[2]};
+    if (tsl_triangle_degenerate(pp))
+        return TESSEL_OK;
+    double lo[3], hi[3];
+    tri_box(r, t, lo, hi);
+    tessel_status st = tsl_trigrid_query(&r->grid, lo, hi);
+    if (st)
+        return st;
+    for (size_t i = 0; i < r->grid.found_count + (size_t)count; i++) {
+        uint32_t e = i < r->grid.found_count ? r->grid.found[i]
+                                             : news[i - r->grid.found_count];
+        if (e == t || e >= r->nt)
+            continue;
+        bool is_new = false;
+        for (int j = 0; j < count; j++)
+            is_new |= news[j] == e;
+        if (is_new && i < r->grid.found_count)
+            continue; /* tested below with its new coordinates */
+        const uint32_t *ev = r->tri + 3 * (size_t)e;
+        double q[3][3];
+        for (int j = 0; j < 3; j++)
+            vtx(r, ev[j], q[j]);
+        const double *pq[3] = {q[0], q[1], q[2]};
+        if (!is_new) {
+            bool apart = false;
+            for (int c = 0; c < 3 && !apart; c++) {
+                double elo = q[0][c], ehi = q[0][c];
+                for (int j = 1; j < 3; j++) {
+                    elo = q[j][c] < elo ? q[j][c] : elo;
+                    ehi = q[j][c] > ehi ? q[j][c] : ehi;
+                }
+                apart = ehi < lo[c] || elo > hi[c];
+            }
+            if (apart)
+                continue;
+        }
+        if (tsl_triangles_intersect(tv, pp, ev, pq))
+            return TESSEL_OK;
+    }
+    *ok = true;
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Storage                                                                   */
+/* ------------------------------------------------------------------------ */
+
+/* Grows *p (holding *cap elements of size bytes) to hold need, doubling. */
+static tessel_status grow(void **p, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap)
+        return TESSEL_OK;
+    size_t n = *cap * 2 > need ? *cap * 2 : need, bytes;
+    if (!tsl_mul_size(n, size, &bytes))
+        return TESSEL_ERR_NOMEM;
+    void *q = realloc(*p, bytes);
+    if (!q)
+        return TESSEL_ERR_NOMEM;
+    *p = q;
+    *cap = n;
+    return TESSEL_OK;
+}
+
+static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
+{
+    if (r->nv + more_v > r->cap_v) {
+        size_t c1 = r->cap_v, c2 = r->cap_v;
+        if (grow((void **)&r->xyz, &c1, r->nv + more_v, 3 * sizeof *r->xyz) ||
+            (r->rgb && grow((void **)&r->rgb, &c2, r->nv + more_v, 3)))
+            return TESSEL_ERR_NOMEM;
+        r->cap_v = r->rgb && c2 < c1 ? c2 : c1;
+    }
+    if (r->nt + more_t > r->cap_t) {
+        size_t c1 = r->cap_t, c2 = r->cap_t;
+        if (grow((void **)&r->tri, &c1, r->nt + more_t, 3 * sizeof *r->tri) ||
+            grow((void **)&r->twin, &c2, r->nt + more_t, 3 * sizeof *r->twin))
+            return TESSEL_ERR_NOMEM;
+        r->cap_t = c1 < c2 ? c1 : c2;
+    }
+    return TESSEL_OK;
+}
+
+static inline void set_twin(rf *r, uint32_t h, uint32_t g)
+{
+    r->twin[h] = g;
+    if (g != NONE)
+        r->twin[g] = h;
+}
+
+/* Builds twins and the edge map; INVALID_ARG for a non-manifold or
+ * inconsistently oriented mesh or a triangle with a repeated or bad vertex.
+ * The first half-edge of an edge goes into the map, the second becomes its
+ * twin, a third (or a second in the same direction) is an error. */
+static tessel_status build_topology(rf *r)
+{
+    size_t nh = 3 * r->nt;
+    tessel_status st = map_init(&r->edges, nh);
+    if (st)
+        return st;
+    for (size_t t = 0; t < r->nt; t++) {
+        const uint32_t *v = r->tri + 3 * t;
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2] || v[0] >= r->nv || v[1] >= r->nv ||
+            v[2] >= r->nv)
+            return TESSEL_ERR_INVALID_ARG;
+    }
+    for (size_t h = 0; h < nh; h++)
+        r->twin[h] = NONE;
+    for (size_t h = 0; h < nh; h++) {
+        uint32_t a = he_from(r, (uint32_t)h), b = he_to(r, (uint32_t)h);
+        uint32_t g = map_get(&r->edges, a, b);
+        if (g == NONE) {
+            if ((st = map_put(&r->edges, a, b, (uint32_t)h)))
+                return st;
+            continue;
+        }
+        if (r->twin[g] != NONE || he_from(r, g) != b)
+            return TESSEL_ERR_INVALID_ARG;
+        set_twin(r, (uint32_t)h, g);
+    }
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Split and flip                                                            */
+/* ------------------------------------------------------------------------ */
+
+/* Splits edge {u, v} at position pos (a new vertex; colour the mean of the
+ * ends). *done reports whether it was kept. */
+static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3],
+                                double min_ratio, bool *done)
+{
+    *done = false;
+    uint32_t h = map_get(&r->edges, u, v);
+    if (h == NONE)
+        return TESSEL_OK;
+    uint32_t g = r->twin[h];
+    /* Skinny triangles are not divided (the paper's ratio test). */
+    uint32_t sides[2] = {h / 3, g == NONE ? NONE : g / 3};
+    for (int s = 0; s < 2; s++) {
+        if (sides[s] == NONE)
+            continue;
+        double p[3][3], lmin = INFINITY, lmax = 0.0;
+        for (int i = 0; i < 3; i++)
+            vtx(r, r->tri[3 * (size_t)sides[s] + i], p[i]);
+        for (int i = 0; i < 3; i++) {
+            double d[3];
+            tsl_sub(p[(i + 1) % 3], p[i], d);
+            double l = tsl_norm(d);
+            lmin = l < lmin ? l : lmin;
+            lmax = l > lmax ? l : lmax;
+        }
+        if (!(lmin >= min_ratio * lmax)) {
+            r->stats.skipped_skinny++;
+            return TESSEL_OK;
+        }
+    }
+    tessel_status st = reserve(r, 1, 2);
+    if (st)
+        return st;
+    /* Undo record. */
+    uint32_t T1 = h / 3, i = h % 3, T2 = g == NONE ? NONE : g / 3, j = g == NONE ? 0 : g % 3;
+    uint32_t save_tri[6], save_twin[6];
+    memcpy(save_tri, r->tri + 3 * (size_t)T1, 3 * sizeof *save_tri);
+    memcpy(save_twin, r->twin + 3 * (size_t)T1, 3 * sizeof *save_twin);
+    if (T2 != NONE) {
+        memcpy(save_tri + 3, r->tri + 3 * (size_t)T2, 3 * sizeof *save_tri);
+        memcpy(save_twin + 3, r->twin + 3 * (size_t)T2, 3 * sizeof *save_twin);
+    }
+    double old1[3], old2[3] = {0.0, 0.0, 0.0};
+    tri_cross(r, T1, old1);
+    tsl_normalize(old1);
+    if (T2 != NONE) {
+        tri_cross(r, T2, old2);
+        tsl_normalize(old2);
+    }
+
+    uint32_t m = (uint32_t)r->nv++;
+    for (int c = 0; c < 3; c++)
+        r->xyz[3 * (size_t)m + c] = pos[c];
+    if (r->rgb)
+        for (int c = 0; c < 3; c++)
+            r->rgb[3 * (size_t)m + c] = (uint8_t)((r->rgb[3 * (size_t)u + c] +
+                                                   r->rgb[3 * (size_t)v + c] + 1) / 2);
+    /* T1 = (x, y, a) with h = x->y at slot i: becomes (x, m, a); T3 =
+     * (m, y, a). Likewise T2 = (y, x, b) -> (y, m, b) and T4 = (m, x, b). */
+    uint32_t x = r->tri[3 * T1 + i], y = r->tri[3 * T1 + (i + 1) % 3];
+    uint32_t a = r->tri[3 * T1 + (i + 2) % 3];
+    uint32_t h_ya = 3 * T1 + (i + 1) % 3, tw_ya = r->twin[h_ya];
+    uint32_t T3 = (uint32_t)r->nt++;
+    r->tri[3 * T1 + (i + 1) % 3] = m;
+    r->tri[3 * T3] = m;
+    r->tri[3 * T3 + 1] = y;
+    r->tri[3 * T3 + 2] = a;
+    uint32_t T4 = NONE, b = NONE, tw_xb = NONE;
+    if (T2 != NONE) {
+        b = r->tri[3 * T2 + (j + 2) % 3];
+        tw_xb = r->twin[3 * T2 + (j + 1) % 3];
+        T4 = (uint32_t)r->nt++;
+        r->tri[3 * T2 + (j + 1) % 3] = m;
+        r->tri[3 * T4] = m;
+        r->tri[3 * T4 + 1] = x;
+        r->tri[3 * T4 + 2] = b;
+    }
+    /* Twins. T1: x->m (slot i), m->a (slot i+1), a->x (slot i+2, kept). */
+    set_twin(r, 3 * T1 + (i + 1) % 3, 3 * T3 + 2);  /* m->a / a->m */
+    set_twin(r, 3 * T3 + 1, tw_ya);                 /* y->a */
+    if (T2 != NONE) {
+        set_twin(r, 3 * T1 + i, 3 * T4);            /* x->m / m->x */
+        set_twin(r, 3 * T3, 3 * T2 + j);            /* m->y / y->m */
+        set_twin(r, 3 * T2 + (j + 1) % 3, 3 * T4 + 2); /* m->b / b->m */
+        set_twin(r, 3 * T4 + 1, tw_xb);             /* x->b */
+    } else {
+        r->twin[3 * T1 + i] = NONE;
+        r->twin[3 * T3] = NONE;
+    }
+    uint32_t news[4] = {T1, T3, T2, T4};
+    int count = T2 != NONE ? 4 : 2;
+    bool ok = true;
+    for (int q = 0; q < count && ok; q++) {
+        st = check_new(r, news[q], q < 2 ? old1 : old2, news, count, &ok);
+        if (st)
+            return st;
+    }
+    if (!ok) {
+        /* Undo: restore T1, T2 and the outer twins; drop m, T3, T4. */
+        memcpy(r->tri + 3 * (size_t)T1, save_tri, 3 * sizeof *save_tri);
+        memcpy(r->twin + 3 * (size_t)T1, save_twin, 3 * sizeof *save_twin);
+        set_twin(r, h_ya, tw_ya);
+        if (T2 != NONE) {
+            memcpy(r->tri + 3 * (size_t)T2, save_tri + 3, 3 * sizeof *save_tri);
+            memcpy(r->twin + 3 * (size_t)T2, save_twin + 3, 3 * sizeof *save_twin);
+            set_twin(r, 3 * T2 + (j + 1) % 3, tw_xb);
+            for (int q = 0; q < 3; q++)
+                set_twin(r, 3 * T1 + (uint32_t)q, r->twin[3 * T1 + (uint32_t)q]);
+        }
+        r->nt -= (size_t)(count / 2);
+        r->nv--;
+        r->stats.skipped_invalid++;
+        return TESSEL_OK;
+    }
+    /* Keep: edge map and grid. */
+    map_del(&r->edges, x, y);
+    if ((st = map_put(&r->edges, x, m, 3 * T1 + i)) ||
+        (st = map_put(&r->edges, m, y, 3 * T3)) ||
+        (st = map_put(&r->edges, m, a, 3 * T1 + (i + 1) % 3)) ||
+        (st = map_put(&r->edges, y, a, 3 * T3 + 1)))
+        return st;
+    if (T2 != NONE && ((st = map_put(&r->edges, m, b, 3 * T2 + (j + 1) % 3)) ||
+                       (st = map_put(&r->edges, x, b, 3 * T4 + 1))))
+        return st;
+    for (int q = 0; q < count; q++)
+        if ((st = grid_add(r, news[q])))
+            return st;
+    r->stats.splits++;
+    *done = true;
+    return TESSEL_OK;
+}
+
+/* Flips the diagonal {u, v} of its two triangles when the other diagonal
+ * is shorter and the result is valid. */
+static tessel_status flip_edge(rf *r, uint32_t h, bool *done)
+{
+    *done = false;
+    uint32_t g = r->twin[h];
+    if (g == NONE)
+        return TESSEL_OK;
+    uint32_t T1 = h / 3, i = h % 3, T2 = g / 3, j = g % 3;
+    uint32_t u = r->tri[3 * T1 + i], v = r->tri[3 * T1 + (i + 1) % 3];
+    uint32_t a = r->tri[3 * T1 + (i + 2) % 3], b = r->tri[3 * T2 + (j + 2) % 3];
+    if (a == b || map_get(&r->edges, a, b) != NONE)
+        return TESSEL_OK;
+    double pu[3], pv[3], pa[3], pb[3], d1[3], d2[3];
+    vtx(r, u, pu);
+    vtx(r, v, pv);
+    vtx(r, a, pa);
+    vtx(r, b, pb);
+    tsl_sub(pv, pu, d1);
+    tsl_sub(pb, pa, d2);
+    /* The paper's rule, with a margin so that no edge flips back and forth. */
+    if (!(tsl_dot(d2, d2) < (1.0 - 1e-6) * tsl_dot(d1, d1)))
+        return TESSEL_OK;
+    double n1[3], n2[3], avg[3];
+    tri_cross(r, T1, n1);
+    tri_cross(r, T2, n2);
+    for (int c = 0; c < 3; c++)
+        avg[c] = n1[c] + n2[c];
+    if (!tsl_normalize(avg))
+        return TESSEL_OK;
+    uint32_t tw_vA = r->twin[3 * T1 + (i + 1) % 3], tw_Au = r->twin[3 * T1 + (i + 2) % 3];
+    uint32_t tw_uB = r->twin[3 * T2 + (j + 1) % 3], tw_Bv = r->twin[3 * T2 + (j + 2) % 3];
+    uint32_t save_tri[6], save_twin[6];
+    memcpy(save_tri, r->tri + 3 * (size_t)T1, 3 * sizeof *save_tri);
+    memcpy(save_tri + 3, r->tri + 3 * (size_t)T2, 3 * sizeof *save_tri);
+    memcpy(save_twin, r->twin + 3 * (size_t)T1, 3 * sizeof *save_twin);
+    memcpy(save_twin + 3, r->twin + 3 * (size_t)T2, 3 * sizeof *save_twin);
+    /* (u, v, a) + (v, u, b) -> (u, b, a) + (v, a, b). */
+    uint32_t *t1 = r->tri + 3 * (size_t)T1, *t2 = r->tri + 3 * (size_t)T2;
+    t1[0] = u, t1[1] = b, t1[2] = a;
+    t2[0] = v, t2[1] = a, t2[2] = b;
+    set_twin(r, 3 * T1, tw_uB);
+    set_twin(r, 3 * T1 + 1, 3 * T2 + 1);
+    set_twin(r, 3 * T1 + 2, tw_Au);
+    set_twin(r, 3 * T2, tw_vA);
+    set_twin(r, 3 * T2 + 2, tw_Bv);
+    uint32_t news[2] = {T1, T2};
+    bool ok = true;
+    for (int q = 0; q < 2 && ok; q++) {
+        tessel_status st = check_new(r, news[q], avg, news, 2, &ok);
+        if (st)
+            return st;
+    }
+    if (!ok) {
+        memcpy(r->tri + 3 * (size_t)T1, save_tri, 3 * sizeof *save_tri);
+        memcpy(r->tri + 3 * (size_t)T2, save_tri + 3, 3 * sizeof *save_tri);
+        memcpy(r->twin + 3 * (size_t)T1, save_twin, 3 * sizeof *save_twin);
+        memcpy(r->twin + 3 * (size_t)T2, save_twin + 3, 3 * sizeof *save_twin);
+        for (uint32_t q = 0; q < 3; q++) {
+            set_twin(r, 3 * T1 + q, r->twin[3 * T1 + q]);
+            set_twin(r, 3 * T2 + q, r->twin[3 * T2 + q]);
+        }
+        r->stats.skipped_invalid++;
+        return TESSEL_OK;
+    }
+    tessel_status st;
+    map_del(&r->edges, u, v);
+    if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) || (st = map_put(&r->edges, u, b, 3 * T1)) ||
+        (st = map_put(&r->edges, a, u, 3 * T1 + 2)) || (st = map_put(&r->edges, v, a, 3 * T2)) ||
+        (st = map_put(&r->edges, b, v, 3 * T2 + 2)) || (st = grid_add(r, T1)) ||
+        (st = grid_add(r, T2)))
+        return st;
+    r->stats.flips++;
+    *done = true;
+    return TESSEL_OK;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Rounds                                                                    */
+/* ------------------------------------------------------------------------ */
+
+typedef struct split_job {
+    uint32_t u, v;
+    float len;
+    float pos[3];
+} split_job;
+
+static int cmp_job(const void *pa, const void *pb)
+{
+    const split_job *a = pa, *b = pb;
+    if (a->len != b->len)
+        return a->len > b->len ? -1 : 1;
+    if (a->u != b->u)
+        return a->u < b->u ? -1 : 1;
+    return a->v < b->v ? -1 : (a->v > b->v);
+}
+
+/* Area-weighted vertex normals (unnormalised sums, then unit). */
+static tessel_status vertex_normals(const rf *r, double **out)
+{
+    double *n = tsl_calloc_array(3 * r->nv, sizeof *n);
+    if (!n)
+        return TESSEL_ERR_NOMEM;
+    for (size_t t = 0; t < r->nt; t++) {
+        double c[3];
+        tri_cross(r, (uint32_t)t, c);
+        for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++)
+                n[3 * (size_t)r->tri[3 * t + i] + k] += c[k];
+    }
+    for (size_t v = 0; v < r->nv; v++)
+        tsl_normalize(n + 3 * v);
+    *out = n;
+    return TESSEL_OK;
+}
+
+typedef struct round_ctx {
+    const tessel_index *index;
+    const tessel_cloud *cloud;
+    const tessel_projector *projector;
+    double h, eps, min_len;
+    uint32_t k;
+    int threads;
+} round_ctx;
+
+static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_params *p)
+{
+    /* Candidate edges: each undirected edge once (its half-edge with the
+     * smaller id, or its only one). */
+    size_t nh = 3 * r->nt, ne = 0;
+    split_job *jobs = tsl_alloc_array(nh, sizeof *jobs);
+    uint8_t *want = NULL;
+    double *vn = NULL;
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!jobs)
+        goto done;
+    for (size_t hh = 0; hh < nh; hh++) {
+        uint32_t g = r->twin[hh];
+        if (g != NONE && g < hh)
+            continue;
+        jobs[ne].u = he_from(r, (uint32_t)hh);
+        jobs[ne].v = he_to(r, (uint32_t)hh);
+        ne++;
+    }
+    want = tsl_calloc_array(ne ? ne : 1, 1);
+    if (!want || (st = vertex_normals(r, &vn)))
+        goto done;
+    size_t far = 0, unfit = 0;
+    long long count = (long long)ne;
+#pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(c->threads)) \
+    reduction(+ : far, unfit)
+    for (long long ii = 0; ii < count; ii++) {
+        split_job *jb = &jobs[ii];
+        double pu[3], pv[3], d[3], m[3], nm[3];
+        vtx(r, jb->u, pu);
+        vtx(r, jb->v, pv);
+        tsl_sub(pv, pu, d);
+        double len = tsl_norm(d);
+        jb->len = (float)len;
+        if (!(len >= c->min_len))
+            continue;
+        for (int k = 0; k < 3; k++) {
+            m[k] = 0.5 * (pu[k] + pv[k]);
+            nm[k] = vn[3 * (size_t)jb->u + k] + vn[3 * (size_t)jb->v + k];
+        }
+        if (!tsl_normalize(nm))
+            continue;
+        uint32_t idx[MAX_K];
+        float q[3] = {(float)m[0], (float)m[1], (float)m[2]};
+        size_t got = tessel_index_knn(c->index, q, c->k, idx, NULL);
+        if (!got)
+            continue;
+        double a = 0.0;
+        for (size_t s = 0; s < got; s++) {
+            double pc[3], w[3];
+            tsl_load(c->cloud->xyz + 3 * (size_t)idx[s], pc);
+            tsl_sub(pc, m, w);
+            a += tsl_dot(w, nm);
+        }
+        a /= (double)got;
+        if (!(fabs(a) > c->eps))
+            continue;
+        far++;
+        float target[3] = {(float)(m[0] + a * nm[0]), (float)(m[1] + a * nm[1]),
+                           (float)(m[2] + a * nm[2])};
+        if (tessel_project(c->projector, target, jb->pos, NULL, NULL) != TESSEL_OK) {
+            unfit++;
+            continue;
+        }
+        want[ii] = 1;
+    }
+    r->stats.far_edges += far;
+    r->stats.unfit += unfit;
+    /* Longest first; each edge once. */
+    size_t nw = 0;
+    for (size_t e = 0; e < ne; e++)
+        if (want[e])
+            jobs[nw++] = jobs[e];
+    qsort(jobs, nw, sizeof *jobs, cmp_job);
+    st = TESSEL_OK;
+    for (size_t e = 0; e < nw && !st; e++) {
+        bool done_split;
+        st = split_edge(r, jobs[e].u, jobs[e].v, jobs[e].pos, p->min_edge_ratio, &done_split);
+    }
+    if (st)
+        goto done;
+    if (p->flip) {
+        for (int pass = 0; pass < MAX_FLIP_PASSES; pass++) {
+            size_t flips = 0;
+            for (size_t hh = 0; hh < 3 * r->nt; hh++) {
+                uint32_t g = r->twin[hh];
+                if (g == NONE || g < hh)
+                    continue;
+                bool done_flip;
+                if ((st = flip_edge(r, (uint32_t)hh, &done_flip)))
+                    goto done;
+                flips += done_flip;
+            }
+            if (!flips)
+                break;
+        }
+    }
+done:
+    free(jobs);
+    free(want);
+    free(vn);
+    return st;
+}
+
+static tessel_status check_params(const tessel_refine_params *p)
+{
+    if (p->rounds > 20 || p->k < 1 || p->k > MAX_K || !(p->min_offset >= 0.0) ||
+        !isfinite(p->min_offset) || !(p->min_edge_length >= 0.0) ||
+        !isfinite(p->min_edge_length) || !(p->min_edge_ratio >= 0.0 && p->min_edge_ratio <= 1.0))
+        return TESSEL_ERR_INVALID_ARG;
+    return TESSEL_OK;
+}
+
+tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
+                            const tessel_projector *projector,
+                            const tessel_refine_params *params,
+                            const tessel_callbacks *callbacks, tessel_refine_stats *stats)
+{
+    if (stats)
+        memset(stats, 0, sizeof *stats);
+    if (!mesh || !cloud || (mesh->vertex_count && !mesh->xyz) ||
+        (mesh->triangle_count && !mesh->triangles) || (cloud->count && !cloud->xyz))
+        return TESSEL_ERR_INVALID_ARG;
+    tessel_refine_params p = params ? *params : tessel_refine_params_default();
+    tessel_status st = check_params(&p);
+    if (st)
+        return st;
+    for (int c = 0; c < 3; c++)
+        if (mesh->offset[c] != cloud->offset[c])
+            return TESSEL_ERR_INVALID_ARG;
+    if (mesh->vertex_count >= UINT32_MAX / 2 || mesh->triangle_count >= UINT32_MAX / 8)
+        return TESSEL_ERR_LIMIT;
+    if (p.rounds == 0 || mesh->triangle_count == 0)
+        return TESSEL_OK;
+    if (cloud->count < 3)
+        return TESSEL_ERR_TOO_FEW_POINTS;
+
+    rf r;
+    memset(&r, 0, sizeof r);
+    tessel_projector *own = NULL;
+    tessel_index *index = NULL;
+    r.nv = mesh->vertex_count;
+    r.nt = mesh->triangle_count;
+    r.cap_v = r.nv + 16;
+    r.cap_t = r.nt + 16;
+    r.cos_turn = cos(MAX_TURN_DEG * acos(-1.0) / 180.0);
+    r.xyz = tsl_alloc_array(3 * r.cap_v, sizeof *r.xyz);
+    r.rgb = mesh->rgb ? tsl_alloc_array(3 * r.cap_v, 1) : NULL;
+    r.tri = tsl_alloc_array(3 * r.cap_t, sizeof *r.tri);
+    r.twin = tsl_alloc_array(3 * r.cap_t, sizeof *r.twin);
+    st = TESSEL_ERR_NOMEM;
+    if (!r.xyz || !r.tri || !r.twin || (mesh->rgb && !r.rgb))
+        goto done;
+    memcpy(r.xyz, mesh->xyz, 3 * r.nv * sizeof *r.xyz);
+    if (r.rgb)
+        memcpy(r.rgb, mesh->rgb, 3 * r.nv);
+    memcpy(r.tri, mesh->triangles, 3 * r.nt * sizeof *r.tri);
+    if ((st = build_topology(&r)))
+        goto done;
+    if (!projector) {
+        if ((st = tessel_projector_create(&own, cloud, NULL)))
+            goto done;
+        projector = own;
+    }
+    if ((st = tessel_index_build(&index, cloud->xyz, cloud->count)))
+        goto done;
+    round_ctx c;
+    c.index = index;
+    c.cloud = cloud;
+    c.projector = projector;
+    c.h = tessel_projector_spacing(projector);
+    c.eps = p.min_offset * c.h;
+    c.min_len = p.min_edge_length * c.h;
+    c.k = p.k < cloud->count ? p.k : (uint32_t)cloud->count;
+    c.threads = p.threads;
+    {
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (size_t v = 0; v < r.nv; v++)
+            for (int k = 0; k < 3; k++) {
+                lo[k] = r.xyz[3 * v + k] < lo[k] ? r.xyz[3 * v + k] : lo[k];
+                hi[k] = r.xyz[3 * v + k] > hi[k] ? r.xyz[3 * v + k] : hi[k];
+            }
+        double mean_len = 0.0;
+        for (size_t t = 0; t < r.nt; t++) {
+            double a[3], b[3], d[3];
+            vtx(&r, r.tri[3 * t], a);
+            vtx(&r, r.tri[3 * t + 1], b);
+            tsl_sub(b, a, d);
+            mean_len += tsl_norm(d);
+        }
+        mean_len /= (double)r.nt;
+        if ((st = tsl_trigrid_init(&r.grid, lo, hi, 2.0 * mean_len)))
+            goto done;
+        for (size_t t = 0; t < r.nt; t++)
+            if ((st = grid_add(&r, (uint32_t)t)))
+                goto done;
+    }
+    for (uint32_t round = 0; round < p.rounds; round++) {
+        if ((st = tsl_progress(callbacks, "refine", (double)round / p.rounds)))
+            goto done;
+        if ((st = one_round(&r, &c, &p)))
+            goto done;
+    }
+    /* Commit into the caller's mesh. */
+    {
+        tessel_mesh out;
+        if ((st = tessel_mesh_alloc(&out, r.nv, r.nt, mesh->normals != NULL, r.rgb != NULL)))
+            goto done;
+        memcpy(out.xyz, r.xyz, 3 * r.nv * sizeof *out.xyz);
+        memcpy(out.triangles, r.tri, 3 * r.nt * sizeof *out.triangles);
+        if (r.rgb)
+            memcpy(out.rgb, r.rgb, 3 * r.nv);
+        if (out.normals) {
+            double *vn;
+            if ((st = vertex_normals(&r, &vn))) {
+                tessel_mesh_free(&out);
+                goto done;
+            }
+            for (size_t v = 0; v < 3 * r.nv; v++)
+                out.normals[v] = (float)vn[v];
+            free(vn);
+        }
+        for (int k = 0; k < 3; k++)
+            out.offset[k] = mesh->offset[k];
+        tessel_mesh_free(mesh);
+        *mesh = out;
+    }
+    st = tsl_progress(callbacks, "refine", 1.0);
+done:
+    if (stats)
+        *stats = r.stats;
+    tessel_index_destroy(index);
+    tessel_projector_destroy(own);
+    free(r.xyz);
+    free(r.rgb);
+    free(r.tri);
+    free(r.twin);
+    map_free(&r.edges);
+    tsl_trigrid_free(&r.grid);
+    return st;
+}

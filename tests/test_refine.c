@@ -1,0 +1,314 @@
+/* Refinement (src/refine.c) and the whole noisy-cloud pipeline
+ * (src/smooth_pipeline.c). Refinement of a coarse sphere against a dense
+ * sample must bring the surface closer to the sphere while the mesh stays
+ * closed, manifold, oriented and free of self-intersections, give the same
+ * bits for any thread count, leave a plane alone and refuse invalid meshes.
+ * The pipeline, on generated noisy surfaces without normals: a sphere and a
+ * torus come out closed with the right genus and outward; a plane with a
+ * hole keeps its two borders; two close parallel sheets stay two
+ * components. */
+#include "test.h"
+
+#include "surfaces.h"
+
+#include <math.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+
+static tessel_mesh_report check(const tessel_mesh *m)
+{
+    tessel_check_params cp = tessel_check_params_default();
+    tessel_mesh_report r;
+    memset(&r, 0, sizeof r);
+    CHECK(tessel_mesh_check(m, &cp, &r) == TESSEL_OK);
+    return r;
+}
+
+static bool valid_closed(const tessel_mesh_report *r, long genus)
+{
+    return tessel_mesh_report_valid(r) && r->self_intersections == 0 &&
+           r->boundary_edges == 0 && r->components == 1 && r->genus == genus;
+}
+
+/* Mean and largest | |c| - 1 | over triangle centroids and edge midpoints:
+ * how far the piecewise-linear surface is from the unit sphere. */
+static void sphere_error(const tessel_mesh *m, double *mean, double *max)
+{
+    double sum = 0.0, mx = 0.0;
+    size_t n = 0;
+    for (size_t t = 0; t < m->triangle_count; t++) {
+        const float *p[3];
+        for (int i = 0; i < 3; i++)
+            p[i] = m->xyz + 3 * (size_t)m->triangles[3 * t + i];
+        for (int s = 0; s < 4; s++) {
+            double c[3];
+            for (int k = 0; k < 3; k++)
+                c[k] = s == 3 ? (p[0][k] + p[1][k] + p[2][k]) / 3.0
+                              : 0.5 * (p[s][k] + p[(s + 1) % 3][k]);
+            double e = fabs(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) - 1.0);
+            sum += e;
+            mx = e > mx ? e : mx;
+            n++;
+        }
+    }
+    *mean = sum / (double)n;
+    *max = mx;
+}
+
+static double signed_volume(const tessel_mesh *m)
+{
+    double v = 0.0;
+    for (size_t t = 0; t < m->triangle_count; t++) {
+        const float *a = m->xyz + 3 * m->triangles[3 * t];
+        const float *b = m->xyz + 3 * m->triangles[3 * t + 1];
+        const float *c = m->xyz + 3 * m->triangles[3 * t + 2];
+        v += (a[0] * ((double)b[1] * c[2] - (double)b[2] * c[1]) +
+              a[1] * ((double)b[2] * c[0] - (double)b[0] * c[2]) +
+              a[2] * ((double)b[0] * c[1] - (double)b[1] * c[0])) /
+             6.0;
+    }
+    return v;
+}
+
+static bool same_mesh(const tessel_mesh *a, const tessel_mesh *b)
+{
+    return a->vertex_count == b->vertex_count && a->triangle_count == b->triangle_count &&
+           memcmp(a->xyz, b->xyz, 3 * a->vertex_count * sizeof *a->xyz) == 0 &&
+           memcmp(a->triangles, b->triangles, 3 * a->triangle_count * sizeof *a->triangles) ==
+               0;
+}
+
+static tessel_status copy_mesh(tessel_mesh *dst, const tessel_mesh *src)
+{
+    tessel_status st = tessel_mesh_alloc(dst, src->vertex_count, src->triangle_count,
+                                         src->normals != NULL, src->rgb != NULL);
+    if (st)
+        return st;
+    memcpy(dst->xyz, src->xyz, 3 * src->vertex_count * sizeof *src->xyz);
+    memcpy(dst->triangles, src->triangles, 3 * src->triangle_count * sizeof *src->triangles);
+    if (src->normals)
+        memcpy(dst->normals, src->normals, 3 * src->vertex_count * sizeof *src->normals);
+    if (src->rgb)
+        memcpy(dst->rgb, src->rgb, 3 * src->vertex_count);
+    return TESSEL_OK;
+}
+
+static void test_refine_sphere(void)
+{
+    /* A coarse triangulation (about 200 vertices) of the unit sphere and a
+     * dense sample of it. */
+    tessel_cloud coarse, dense;
+    CHECK(surf_sphere(&coarse, 0.25, 1) == TESSEL_OK);
+    CHECK(surf_sphere_fibonacci(&dense, 20000, 0.3, 2) == TESSEL_OK);
+    tessel_mesh m;
+    CHECK(tessel_advancing_front(&coarse, NULL, NULL, &m, NULL) == TESSEL_OK);
+    tessel_mesh_report r0 = check(&m);
+    CHECK(valid_closed(&r0, 0));
+    double mean0, max0;
+    sphere_error(&m, &mean0, &max0);
+
+    tessel_mesh m2;
+    CHECK(copy_mesh(&m2, &m) == TESSEL_OK);
+    tessel_refine_params rp = tessel_refine_params_default();
+    rp.threads = 1;
+    tessel_refine_stats rs;
+    CHECK(tessel_refine(&m, &dense, NULL, &rp, NULL, &rs) == TESSEL_OK);
+    tessel_mesh_report r1 = check(&m);
+    CHECK_MSG(valid_closed(&r1, 0), "refined sphere: %zu boundary, %zu self-intersections, "
+                                    "%zu components",
+              r1.boundary_edges, r1.self_intersections, r1.components);
+    CHECK(r1.oriented && signed_volume(&m) > 0.0);
+    CHECK(rs.splits > 0 && rs.flips > 0);
+    CHECK(m.triangle_count == r0.triangles + 2 * rs.splits);
+    CHECK(m.vertex_count == coarse.count + rs.splits);
+    double mean1, max1;
+    sphere_error(&m, &mean1, &max1);
+    CHECK_MSG(mean1 < 0.5 * mean0, "surface error %g -> %g", mean0, mean1);
+    CHECK(max1 < max0);
+    /* New vertices lie on the sphere (Q projects onto the dense sample). */
+    double worst = 0.0;
+    for (size_t v = coarse.count; v < m.vertex_count; v++) {
+        const float *p = m.xyz + 3 * v;
+        double e = fabs(sqrt((double)p[0] * p[0] + (double)p[1] * p[1] + (double)p[2] * p[2]) -
+                        1.0);
+        worst = e > worst ? e : worst;
+    }
+    CHECK_MSG(worst < 0.01, "new vertex %g off the sphere", worst);
+    /* Vertex normals updated for every vertex, unit and outward. */
+    CHECK(m.normals != NULL);
+    size_t bad_normals = 0;
+    for (size_t v = 0; v < m.vertex_count; v++) {
+        const float *p = m.xyz + 3 * v, *n = m.normals + 3 * v;
+        double d = p[0] * n[0] + p[1] * n[1] + p[2] * n[2];
+        bad_normals += d < 0.9;
+    }
+    CHECK(bad_normals == 0);
+    printf("refine sphere: %zu -> %zu triangles, error mean %.4f -> %.4f, max %.4f -> %.4f\n",
+           r0.triangles, m.triangle_count, mean0, mean1, max0, max1);
+
+    /* Same bits with two threads. */
+    rp.threads = 2;
+    CHECK(tessel_refine(&m2, &dense, NULL, &rp, NULL, NULL) == TESSEL_OK);
+    CHECK(same_mesh(&m, &m2));
+
+    tessel_mesh_free(&m);
+    tessel_mesh_free(&m2);
+    tessel_cloud_free(&coarse);
+    tessel_cloud_free(&dense);
+}
+
+static void test_refine_plane(void)
+{
+    /* A plane is already fitted: no edge is far from the cloud. */
+    tessel_cloud coarse, dense;
+    CHECK(surf_plane_hole(&coarse, 0.2, 3) == TESSEL_OK);
+    CHECK(surf_plane_hole(&dense, 0.03, 4) == TESSEL_OK);
+    tessel_mesh m;
+    CHECK(tessel_advancing_front(&coarse, NULL, NULL, &m, NULL) == TESSEL_OK);
+    size_t before = m.triangle_count;
+    tessel_refine_stats rs;
+    CHECK(tessel_refine(&m, &dense, NULL, NULL, NULL, &rs) == TESSEL_OK);
+    CHECK(rs.splits == 0 && rs.far_edges == 0);
+    CHECK(m.triangle_count == before);
+    tessel_mesh_report r = check(&m);
+    CHECK(tessel_mesh_report_valid(&r) && r.self_intersections == 0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&coarse);
+    tessel_cloud_free(&dense);
+}
+
+static void test_refine_invalid(void)
+{
+    tessel_cloud cloud;
+    CHECK(surf_sphere(&cloud, 0.3, 5) == TESSEL_OK);
+    /* Three triangles on edge 0-1. */
+    tessel_mesh m;
+    CHECK(tessel_mesh_alloc(&m, 5, 3, 0, 0) == TESSEL_OK);
+    const float xyz[15] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1};
+    const uint32_t tris[9] = {0, 1, 2, 1, 0, 3, 0, 1, 4};
+    memcpy(m.xyz, xyz, sizeof xyz);
+    memcpy(m.triangles, tris, sizeof tris);
+    CHECK(tessel_refine(&m, &cloud, NULL, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    CHECK(m.triangle_count == 3 && memcmp(m.triangles, tris, sizeof tris) == 0);
+    /* Same direction twice on an edge. */
+    m.triangle_count = 2;
+    m.triangles[3] = 0, m.triangles[4] = 1, m.triangles[5] = 3;
+    CHECK(tessel_refine(&m, &cloud, NULL, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    /* Frames differ. */
+    m.triangles[3] = 1, m.triangles[4] = 0;
+    m.offset[0] = 1.0;
+    CHECK(tessel_refine(&m, &cloud, NULL, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    m.offset[0] = 0.0;
+    tessel_refine_params bad = tessel_refine_params_default();
+    bad.min_edge_ratio = 2.0;
+    CHECK(tessel_refine(&m, &cloud, NULL, &bad, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&cloud);
+}
+
+/* Noisy clouds without normals through the whole pipeline. */
+static tessel_mesh run_pipeline(tessel_cloud *c, double noise, uint64_t seed,
+                                tessel_smooth_recon_stats *s)
+{
+    free(c->normals);
+    c->normals = NULL;
+    surf_noise(c, noise, seed);
+    tessel_mesh m;
+    tessel_status st = tessel_reconstruct_smooth(c, NULL, NULL, &m, s);
+    CHECK_MSG(st == TESSEL_OK, "pipeline: %s", tessel_status_str(st));
+    return m;
+}
+
+static void test_pipeline_sphere(void)
+{
+    tessel_cloud c;
+    CHECK(surf_sphere(&c, 0.04, 6) == TESSEL_OK);
+    tessel_smooth_recon_stats s;
+    tessel_mesh m = run_pipeline(&c, 0.02, 7, &s);
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(valid_closed(&r, 0), "noisy sphere: %zu boundary edges, %zu components",
+              r.boundary_edges, r.components);
+    CHECK(signed_volume(&m) > 0.0);
+    double mean, max;
+    sphere_error(&m, &mean, &max);
+    CHECK_MSG(mean < 0.01 && max < 0.06, "noisy sphere error mean %g max %g", mean, max);
+    CHECK(s.representatives < c.count / 3 && s.vertices > s.representatives);
+    CHECK(s.seconds_total >= s.seconds_smooth + s.seconds_front);
+    printf("pipeline sphere: %zu points (noise 0.02) -> %zu reps -> %zu triangles, error mean "
+           "%.4f max %.4f\n",
+           c.count, s.representatives, m.triangle_count, mean, max);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+static void test_pipeline_torus(void)
+{
+    tessel_cloud c;
+    CHECK(surf_torus(&c, 1.0, 0.4, 0.04, 8) == TESSEL_OK);
+    tessel_smooth_recon_stats s;
+    tessel_mesh m = run_pipeline(&c, 0.015, 9, &s);
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(valid_closed(&r, 1), "noisy torus: %zu boundary edges, genus %ld",
+              r.boundary_edges, r.genus);
+    CHECK(signed_volume(&m) > 0.0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+static void test_pipeline_open(void)
+{
+    /* Square with a round hole: two borders, one component. */
+    tessel_cloud c;
+    CHECK(surf_plane_hole(&c, 0.02, 10) == TESSEL_OK);
+    tessel_mesh m = run_pipeline(&c, 0.01, 11, NULL);
+    tessel_mesh_report r = check(&m);
+    CHECK(tessel_mesh_report_valid(&r) && r.self_intersections == 0);
+    CHECK_MSG(r.components == 1 && r.boundary_loops == 2, "plane with hole: %zu components, "
+                                                          "%zu loops",
+              r.components, r.boundary_loops);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+static void test_pipeline_sheets(void)
+{
+    /* Two parallel sheets 0.3 apart (14 spacings, 4 between neighbouring
+     * representatives): two components. */
+    tessel_cloud a, two;
+    CHECK(surf_plane_hole(&a, 0.02, 12) == TESSEL_OK);
+    CHECK(tessel_cloud_alloc(&two, 2 * a.count, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < a.count; i++)
+        for (int k = 0; k < 3; k++) {
+            two.xyz[3 * i + k] = a.xyz[3 * i + k];
+            two.xyz[3 * (a.count + i) + k] = a.xyz[3 * i + k] + (k == 2 ? 0.3f : 0.0f);
+        }
+    tessel_mesh m = run_pipeline(&two, 0.01, 13, NULL);
+    tessel_mesh_report r = check(&m);
+    CHECK(tessel_mesh_report_valid(&r) && r.self_intersections == 0);
+    CHECK_MSG(r.components == 2 && r.boundary_loops == 4, "sheets: %zu components, %zu loops",
+              r.components, r.boundary_loops);
+    size_t spanning = 0;
+    for (size_t t = 0; t < m.triangle_count; t++) {
+        float z[3];
+        for (int i = 0; i < 3; i++)
+            z[i] = m.xyz[3 * (size_t)m.triangles[3 * t + i] + 2];
+        spanning += fabsf(z[0] - z[1]) > 0.15f || fabsf(z[0] - z[2]) > 0.15f;
+    }
+    CHECK(spanning == 0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&a);
+    tessel_cloud_free(&two);
+}
+
+int main(void)
+{
+    test_refine_sphere();
+    test_refine_plane();
+    test_refine_invalid();
+    test_pipeline_sphere();
+    test_pipeline_torus();
+    test_pipeline_open();
+    test_pipeline_sheets();
+    return TEST_SUMMARY();
+}
