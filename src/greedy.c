@@ -81,6 +81,19 @@ typedef struct gp_gtri {
     float lo[3], hi[3];
 } gp_gtri;
 
+/* R's free sector in its projection: new triangles lie in the cone from
+ * e's direction counter-clockwise to s's, the mesh around R in the rest.
+ * The projection is linear, so triangles whose images are disjoint (or meet
+ * only in the images of shared vertices and edges) do not meet in space:
+ * held triangles that provably stay out of the cone need no exact test. */
+typedef struct gp_cone {
+    int on;           /* 0: no certificate (a seed: every triangle is tested) */
+    int convex;       /* the free sector is under 180 degrees */
+    uint32_t R, e, s;
+    double e2[2], s2[2], bis[2];
+    double eps;       /* margin for the rounding of projections */
+} gp_cone;
+
 typedef struct gp {
     /* input and parameters */
     const tessel_cloud *cloud;
@@ -98,6 +111,7 @@ typedef struct gp {
     uint32_t *ls, *le;    /* ends of the point's fan: its link path runs
                              ls -> ... -> le counter-clockwise */
     uint32_t *label;      /* component label (union-find), NONE if unused */
+    float *maxe;          /* longest edge ever at the point (0: none) */
 
     /* dexel array: columns over axes au, av; depth along ad */
     int ad, au, av;
@@ -160,6 +174,7 @@ typedef struct gp {
     gp_gtri *gt;
     size_t gt_count, gt_cap;
     uint32_t stamp;
+    gp_cone cone;         /* of the current reference point */
 
     tessel_recon_summary sum;
     size_t processed;
@@ -984,13 +999,24 @@ static tessel_status tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
     pos(g, a, pa);
     pos(g, b, pb);
     pos(g, c, pc);
-    double e2 = 0.0;
+    double l2[3];
     tsl_sub(pa, pb, d);
-    e2 = fmax(e2, tsl_dot(d, d));
+    l2[0] = tsl_dot(d, d); /* ab */
     tsl_sub(pb, pc, d);
-    e2 = fmax(e2, tsl_dot(d, d));
+    l2[1] = tsl_dot(d, d); /* bc */
     tsl_sub(pc, pa, d);
-    e2 = fmax(e2, tsl_dot(d, d));
+    l2[2] = tsl_dot(d, d); /* ca */
+    double e2 = fmax(l2[0], fmax(l2[1], l2[2]));
+    /* Rounded up so that it bounds the true length. */
+    float la = (float)(sqrt(fmax(l2[0], l2[2])) * (1.0 + 1e-6));
+    float lb = (float)(sqrt(fmax(l2[0], l2[1])) * (1.0 + 1e-6));
+    float lc = (float)(sqrt(fmax(l2[1], l2[2])) * (1.0 + 1e-6));
+    if (la > g->maxe[a])
+        g->maxe[a] = la;
+    if (lb > g->maxe[b])
+        g->maxe[b] = lb;
+    if (lc > g->maxe[c])
+        g->maxe[c] = lc;
     if (e2 > g->ell * g->ell) {
         g->tflag[t] |= TF_LONG;
         if ((s = long_register(g, t)) != TESSEL_OK)
@@ -1259,13 +1285,86 @@ static void visibility(gp *g, uint32_t R, const gp_frame *f, uint32_t end_a, uin
     }
 }
 
-/* Collects the held triangles that a new triangle within f->reach of R
- * could meet: those with a vertex in the box of half-size reach + delta
- * (a triangle whose vertices all lie outside has an edge longer than ell
- * and is in the long list of the blocks it overlaps). */
-static tessel_status guard_collect(gp *g, uint32_t R, double reach)
+static inline double cone_dist(const gp_cone *c, const double q[2])
 {
-    double half = reach + g->delta;
+    /* Distance from q to the free cone (0 inside). */
+    double ce = cross2(c->e2[0], c->e2[1], q[0], q[1]);
+    double cs = cross2(q[0], q[1], c->s2[0], c->s2[1]);
+    int inside = c->convex ? (ce >= 0.0 && cs >= 0.0) : (ce >= 0.0 || cs >= 0.0);
+    if (inside)
+        return 0.0;
+    double best = INFINITY;
+    for (int k = 0; k < 2; k++) {
+        const double *d = k ? c->s2 : c->e2;
+        double dl = sqrt(d[0] * d[0] + d[1] * d[1]);
+        double t = (q[0] * d[0] + q[1] * d[1]) / dl;
+        double dist = t <= 0.0 ? sqrt(q[0] * q[0] + q[1] * q[1])
+                               : fabs(cross2(d[0], d[1], q[0], q[1])) / dl;
+        if (dist < best)
+            best = dist;
+    }
+    return best;
+}
+
+/* Triangle T (projected vertices q[k], ids v[k]) provably meets the free
+ * cone at most in R, e or s. */
+static int cone_certifies(const gp_cone *c, const uint32_t v[3], double q[3][2])
+{
+    if (!c->convex) {
+        /* The mesh sector is convex: every vertex in its interior (or R, e,
+         * s on its boundary) keeps the whole triangle in it. */
+        for (int k = 0; k < 3; k++) {
+            if (v[k] == c->R || v[k] == c->e || v[k] == c->s)
+                continue;
+            if (!(cross2(c->s2[0], c->s2[1], q[k][0], q[k][1]) > c->eps &&
+                  cross2(q[k][0], q[k][1], c->e2[0], c->e2[1]) > c->eps))
+                return 0;
+        }
+        return 1;
+    }
+    /* The free sector is convex: separated by the line through e, the line
+     * through s, or the line through R across the bisector. */
+    int side_e = 1, side_s = 1, behind = 1;
+    for (int k = 0; k < 3; k++) {
+        int is_r = v[k] == c->R;
+        if (!is_r && v[k] != c->e && !(cross2(c->e2[0], c->e2[1], q[k][0], q[k][1]) < -c->eps))
+            side_e = 0;
+        if (!is_r && v[k] != c->s && !(cross2(q[k][0], q[k][1], c->s2[0], c->s2[1]) < -c->eps))
+            side_s = 0;
+        if (!is_r && !(q[k][0] * c->bis[0] + q[k][1] * c->bis[1] < -c->eps))
+            behind = 0;
+    }
+    return side_e || side_s || behind;
+}
+
+static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp_frame *f)
+{
+    g->tstamp[t] = g->stamp;
+    const gp_tri *T = &g->tri[t];
+    if (cone->on) {
+        double q[3][2];
+        for (int k = 0; k < 3; k++)
+            project_point(g, cone->R, f, T->v[k], q[k]);
+        if (cone_certifies(cone, T->v, q))
+            return TESSEL_OK;
+    }
+    if (grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
+        return TESSEL_ERR_NOMEM;
+    gp_gtri *e = &g->gt[g->gt_count++];
+    e->t = t;
+    tri_box(g, T->v, e->lo, e->hi);
+    return TESSEL_OK;
+}
+
+/* Collects the held triangles that a new triangle within f->reach of R
+ * could meet and that the cone does not rule out: those with a vertex in
+ * the box of half-size reach + delta (a triangle whose vertices all lie
+ * outside has an edge longer than ell and is in the long-triangle grid). A
+ * point whose projection is farther from the free cone than its longest
+ * edge cannot have a triangle reaching the cone: skipped whole. */
+static tessel_status guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone)
+{
+    double half = f->reach + g->delta;
     g->stamp++;
     if (g->stamp == 0) {
         for (size_t t = 0; t < g->tused; t++)
@@ -1273,35 +1372,48 @@ static tessel_status guard_collect(gp *g, uint32_t R, double reach)
         g->stamp = 1;
     }
     g->gt_count = 0;
+    gp_cone cone;
+    memset(&cone, 0, sizeof cone);
+    cone.R = R;
+    cone.e = cone.s = NONE;
+    if (use_cone) {
+        cone.on = 1;
+        cone.e = g->le[R];
+        cone.s = g->ls[R];
+        project_point(g, R, f, cone.e, cone.e2);
+        project_point(g, R, f, cone.s, cone.s2);
+        cone.convex = cross2(cone.e2[0], cone.e2[1], cone.s2[0], cone.s2[1]) > 0.0;
+        double le_ = sqrt(cone.e2[0] * cone.e2[0] + cone.e2[1] * cone.e2[1]);
+        double ls_ = sqrt(cone.s2[0] * cone.s2[0] + cone.s2[1] * cone.s2[1]);
+        cone.bis[0] = cone.e2[0] / le_ + cone.s2[0] / ls_;
+        cone.bis[1] = cone.e2[1] / le_ + cone.s2[1] / ls_;
+        double span = 2.0 * half + g->ell;
+        cone.eps = 1e-9 * span * span;
+    }
+    g->cone = cone;
+    tessel_status s;
     for (size_t k = 0; k < g->box_count; k++) {
         const gp_box *b = &g->box[k];
-        if ((double)b->dinf > half)
-            continue;
         uint32_t v = b->idx;
+        if ((double)b->dinf > half || g->head[v] == NONE)
+            continue;
+        if (cone.on) {
+            double q[2] = {tsl_dot(b->rel, f->u), tsl_dot(b->rel, f->v)};
+            if (cone_dist(&cone, q) > (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * half)
+                continue;
+        }
         for (uint32_t t = g->head[v]; t != NONE;) {
-            gp_tri *T = &g->tri[t];
-            if (g->tstamp[t] != g->stamp) {
-                g->tstamp[t] = g->stamp;
-                if (grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
-                    return TESSEL_ERR_NOMEM;
-                gp_gtri *e = &g->gt[g->gt_count++];
-                e->t = t;
-                tri_box(g, T->v, e->lo, e->hi);
-            }
+            const gp_tri *T = &g->tri[t];
+            if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f)) != TESSEL_OK)
+                return s;
             t = T->next[tri_pos(T, v)];
         }
     }
     /* R's own triangles (R is not in its box). */
     for (uint32_t t = g->head[R]; t != NONE;) {
-        gp_tri *T = &g->tri[t];
-        if (g->tstamp[t] != g->stamp) {
-            g->tstamp[t] = g->stamp;
-            if (grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
-                return TESSEL_ERR_NOMEM;
-            gp_gtri *e = &g->gt[g->gt_count++];
-            e->t = t;
-            tri_box(g, T->v, e->lo, e->hi);
-        }
+        const gp_tri *T = &g->tri[t];
+        if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f)) != TESSEL_OK)
+            return s;
         t = T->next[tri_pos(T, R)];
     }
     /* Long triangles of the cells the box overlaps. */
@@ -1330,13 +1442,8 @@ static tessel_status guard_collect(gp *g, uint32_t R, double reach)
                     if (tl[0] > hi[0] || th[0] < lo[0] || tl[1] > hi[1] || th[1] < lo[1] ||
                         tl[2] > hi[2] || th[2] < lo[2])
                         continue;
-                    g->tstamp[t] = g->stamp;
-                    if (grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
-                        return TESSEL_ERR_NOMEM;
-                    gp_gtri *ge = &g->gt[g->gt_count++];
-                    ge->t = t;
-                    memcpy(ge->lo, tl, sizeof tl);
-                    memcpy(ge->hi, th, sizeof th);
+                    if ((s = guard_push(g, t, &cone, f)) != TESSEL_OK)
+                        return s;
                 }
             }
     return TESSEL_OK;
@@ -1382,7 +1489,8 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
     (void)f;
     double pr[3];
     pos(g, R, pr);
-    double cap2 = 4.0 * g->mu * g->m_cap * g->mu * g->m_cap;
+    double rcap = g->mu * g->m_cap;
+    double cap2 = 4.0 * rcap * rcap;
     for (int i = 0; i < cnt; i++) {
         const gp_cand *a = &g->cand[g->seq[j + (size_t)i]];
         const gp_cand *b = &g->cand[g->seq[j + (size_t)i + 1]];
@@ -1396,14 +1504,43 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
         tsl_sub(a->rel, b->rel, ab);
         if (tsl_dot(ab, ab) > cap2 || a->d2 > cap2 || b->d2 > cap2)
             return TESSEL_OK;
-        /* Invariant 1: no free or fringe candidate may end up inside. */
+        /* Invariant 1: no free candidate may end up inside (it could never
+         * be reached again). Points with triangles are protected by the
+         * exact guard instead. */
         for (size_t k = 0; k < g->cand_count; k++) {
             const gp_cand *c = &g->cand[k];
-            if (c->kept || c->idx == a->idx || c->idx == b->idx)
+            if (c->kept || c->idx == a->idx || c->idx == b->idx || g->head[c->idx] != NONE)
                 continue;
             if (cross2(a->x, a->y, c->x, c->y) > 0.0 && cross2(c->x, c->y, b->x, b->y) > 0.0 &&
                 cross2(b->x - a->x, b->y - a->y, c->x - a->x, c->y - a->y) > 0.0)
                 return TESSEL_OK;
+        }
+        /* With the cone certificate, the triangle must provably lie in the
+         * free cone: both ends inside it (or R's boundary neighbours) and
+         * neither boundary ray inside the angle a R b. */
+        const gp_cone *cn = &g->cone;
+        if (cn->on) {
+            const gp_cand *ends[2] = {a, b};
+            for (int q = 0; q < 2; q++) {
+                const gp_cand *x = ends[q];
+                if (x->idx == cn->e || x->idx == cn->s)
+                    continue;
+                double ce = cross2(cn->e2[0], cn->e2[1], x->x, x->y);
+                double cs = cross2(x->x, x->y, cn->s2[0], cn->s2[1]);
+                int in = cn->convex ? (ce > cn->eps && cs > cn->eps)
+                                    : (ce > cn->eps || cs > cn->eps);
+                if (!in)
+                    return TESSEL_OK;
+            }
+            for (int q = 0; q < 2; q++) {
+                uint32_t ray = q ? cn->s : cn->e;
+                const double *d = q ? cn->s2 : cn->e2;
+                if (a->idx == ray || b->idx == ray)
+                    continue;
+                if (!(cross2(a->x, a->y, d[0], d[1]) < -cn->eps ||
+                      cross2(d[0], d[1], b->x, b->y) < -cn->eps))
+                    return TESSEL_OK;
+            }
         }
         double qa[3], qb[3];
         pos(g, a->idx, qa);
@@ -1611,8 +1748,8 @@ static void finish_ref(gp *g, uint32_t R)
 
 /* Gathers the candidates of R: live points of the box within rho, plus the
  * required ones. */
-static tessel_status gather(gp *g, double b, double m0, gp_frame *f, uint32_t req_a,
-                            uint32_t req_b)
+static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
+                            uint32_t req_a, uint32_t req_b)
 {
     double dmin2 = INFINITY;
     for (size_t k = 0; k < g->box_count; k++) {
@@ -1628,7 +1765,7 @@ static tessel_status gather(gp *g, double b, double m0, gp_frame *f, uint32_t re
         m = sqrt(dmin2);
     if (m < g->m_floor)
         m = g->m_floor;
-    f->rho = g->mu * m;
+    f->rho = mu * m;
     double rho2 = f->rho * f->rho;
     f->reach = f->rho;
     g->cand_count = 0;
@@ -1650,10 +1787,9 @@ static tessel_status gather(gp *g, double b, double m0, gp_frame *f, uint32_t re
     return TESSEL_OK;
 }
 
-/* A fringe or boundary point as reference point. */
-static tessel_status process(gp *g, uint32_t R)
+/* R's fan, its sphere of influence, its candidates and the fill. */
+static tessel_status process_pass(gp *g, uint32_t R)
 {
-    g->state[R] = (uint8_t)(g->state[R] + ST_VISITS);
     double pr[3];
     pos(g, R, pr);
     gp_frame f;
@@ -1692,7 +1828,7 @@ static tessel_status process(gp *g, uint32_t R)
     tessel_status st_ = scan_box(g, R, half);
     if (st_ != TESSEL_OK)
         return st_;
-    if ((st_ = gather(g, b, m0, &f, e, s)) != TESSEL_OK)
+    if ((st_ = gather(g, b, m0, g->mu, &f, e, s)) != TESSEL_OK)
         return st_;
     for (int q = 0; q < 3; q++)
         f.n[q] = nsum[q];
@@ -1713,12 +1849,19 @@ static tessel_status process(gp *g, uint32_t R)
         gp_cand *c = &g->cand[i];
         c->key = wrap4(pseudo_angle(c->x, c->y) - ke);
     }
-    if ((st_ = guard_collect(g, R, f.reach)) != TESSEL_OK)
+    if ((st_ = guard_collect(g, R, &f, 1)) != TESSEL_OK)
         return st_;
     if ((st_ = fill_sector(g, R, &f)) != TESSEL_OK)
         return st_;
     finish_ref(g, R);
     return TESSEL_OK;
+}
+
+/* A fringe or boundary point as reference point. */
+static tessel_status process(gp *g, uint32_t R)
+{
+    g->state[R] = (uint8_t)(g->state[R] + ST_VISITS);
+    return process_pass(g, R);
 }
 
 /* Sign of a seed's normal: agree with the triangles already around it, else
@@ -1729,6 +1872,12 @@ static void orient_seed(gp *g, uint32_t R, double n[3])
     double ref[3] = {0, 0, 0};
     for (size_t i = 0; i < g->cand_count; i++) {
         uint32_t c = g->cand[i].idx;
+        /* Only neighbours near R's tangent plane vote: points of a facing
+         * sheet (a hand beside a thigh) lie along the normal and would
+         * flip the seed. */
+        double h = tsl_dot(g->cand[i].rel, n);
+        if (h * h > 0.25 * (g->cand[i].d2 - h * h))
+            continue;
         for (uint32_t t = g->head[c]; t != NONE;) {
             const gp_tri *T = &g->tri[t];
             double a[3], b[3], cc[3], u[3], v[3], nn[3];
@@ -1791,7 +1940,7 @@ static tessel_status seed(gp *g, uint32_t R)
     double b = g->mu * m;
     if ((s = scan_box(g, R, b + g->delta)) != TESSEL_OK)
         return s;
-    if ((s = gather(g, b, m, &f, NONE, NONE)) != TESSEL_OK)
+    if ((s = gather(g, b, m, g->mu, &f, NONE, NONE)) != TESSEL_OK)
         return s;
     size_t done_near = 0;
     for (size_t k = 0; k < g->box_count; k++)
@@ -1807,7 +1956,7 @@ static tessel_status seed(gp *g, uint32_t R)
         g->cand[i].key = pseudo_angle(g->cand[i].x, g->cand[i].y);
     visibility(g, R, &f, NONE, NONE);
     sort_cands(g);
-    if ((s = guard_collect(g, R, f.reach)) != TESSEL_OK)
+    if ((s = guard_collect(g, R, &f, 0)) != TESSEL_OK)
         return s;
     /* Kept candidates in angular order; start after the widest gap. */
     size_t nk = 0;
@@ -1885,6 +2034,7 @@ static void gp_free(gp *g)
     free(g->ls);
     free(g->le);
     free(g->label);
+    free(g->maxe);
     free(g->col);
     free(g->blive);
     free(g->bdead);
@@ -2076,11 +2226,12 @@ static tessel_status gp_init(gp *g)
     g->ls = tsl_alloc_array(n, sizeof *g->ls);
     g->le = tsl_alloc_array(n, sizeof *g->le);
     g->label = tsl_alloc_array(n, sizeof *g->label);
+    g->maxe = tsl_calloc_array(n, sizeof *g->maxe);
     g->queue = tsl_alloc_array(n, sizeof *g->queue);
     g->seed_order = tsl_alloc_array(n, sizeof *g->seed_order);
     g->out = tsl_alloc_array(OUT_BATCH, 3 * sizeof *g->out);
     if (!g->xyz || !g->orig || !g->state || !g->head || !g->ls || !g->le || !g->label ||
-        !g->queue || !g->seed_order || !g->out)
+        !g->queue || !g->seed_order || !g->out || !g->maxe)
         return TESSEL_ERR_NOMEM;
     memset(g->head, 0xff, n * sizeof *g->head);
     memset(g->ls, 0xff, n * sizeof *g->ls);
@@ -2134,7 +2285,7 @@ static tessel_status gp_init(gp *g)
     g->sum.spacing = spacing;
     g->m_cap = g->max_spacing * spacing;
     g->m_floor = 0.05 * spacing;
-    g->ell = 2.0 * spacing;
+    g->ell = 3.0 * spacing;
     g->delta = g->ell / sqrt(3.0);
     g->lg_inv = 1.0 / (2.0 * (g->mu * spacing + g->delta));
 
@@ -2201,7 +2352,7 @@ tessel_greedy_params tessel_greedy_params_default(void)
 {
     tessel_greedy_params p;
     memset(&p, 0, sizeof p);
-    p.mu = 2.5;
+    p.mu = 2.0;
     p.max_angle = 120.0;
     p.min_angle = 0.0;
     p.plane = TESSEL_GREEDY_PLANE_PCA;
