@@ -243,21 +243,46 @@ static double mesh_distance(const tri_grid *g, const double p[3])
     return sqrt(best);
 }
 
-/* RMS and max distance of the cloud's points to the mesh (world coords). */
-static void cloud_distance(const tri_grid *g, const tessel_cloud *c, double *rms, double *mx)
+static int cmp_double(const void *a, const void *b)
 {
-    double s = 0, m = 0;
-#pragma omp parallel for reduction(+ : s) reduction(max : m) schedule(dynamic, 1024)
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* RMS, max and (when med is not NULL) median distance of the cloud's
+ * points to the mesh (world coordinates). */
+static void cloud_distance3(const tri_grid *g, const tessel_cloud *c, double *rms, double *mx,
+                            double *med)
+{
+    double *d = malloc(c->count * sizeof *d);
+    if (!d) {
+        fprintf(stderr, "out of memory\n");
+        exit(1);
+    }
+#pragma omp parallel for schedule(dynamic, 1024)
     for (size_t i = 0; i < c->count; i++) {
         double p[3];
         for (int a = 0; a < 3; a++)
             p[a] = c->xyz[3 * i + a] + c->offset[a] - g->m->offset[a];
-        double d = mesh_distance(g, p);
-        s += d * d;
-        m = d > m ? d : m;
+        d[i] = mesh_distance(g, p);
+    }
+    double s = 0, m = 0;
+    for (size_t i = 0; i < c->count; i++) {
+        s += d[i] * d[i];
+        m = d[i] > m ? d[i] : m;
     }
     *rms = sqrt(s / (double)c->count);
     *mx = m;
+    if (med) {
+        qsort(d, c->count, sizeof *d, cmp_double);
+        *med = d[c->count / 2];
+    }
+    free(d);
+}
+
+static void cloud_distance(const tri_grid *g, const tessel_cloud *c, double *rms, double *mx)
+{
+    cloud_distance3(g, c, rms, mx, NULL);
 }
 
 /* ---- 1. throughput ---- */
@@ -281,8 +306,11 @@ static void noisy_sphere(tessel_cloud *c, size_t n, double sigma)
 static void bench_speed(size_t n)
 {
     tessel_cloud c, out, reps;
-    noisy_sphere(&c, n, 0.004);
-    printf("## Throughput: noisy unit sphere, %zu points (uniform random, noise 0.004)\n\n", n);
+    /* Noise of about a third of the spacing of n points on the sphere. */
+    double noise = 0.3 * sqrt(4 * 3.141592653589793 / (double)n);
+    noisy_sphere(&c, n, noise);
+    printf("## Throughput: noisy unit sphere, %zu points (uniform random, radial noise %.5f)\n\n",
+           n, noise);
     double t0 = now(), c0 = cpu_now(), h;
     if (tessel_cloud_spacing(&c, &h) != TESSEL_OK)
         return;
@@ -299,8 +327,10 @@ static void bench_speed(size_t n)
         if (tessel_smooth(&c, &out, &p, NULL, &st) != TESSEL_OK)
             return;
         double w = now() - t0, cpu = cpu_now() - c0;
-        printf("| smooth (k=%u, 1 pass) | %d | %.3f | %.3f | %.0f | %.2f IRLS iterations, %zu unfit |\n",
-               p.k, th, w, cpu, n / w, st.mean_iterations, st.unfit);
+        printf("| smooth (k=%u, %u passes) | %d | %.3f | %.3f | %.0f | %.0f point-passes/s; %.2f IRLS "
+               "iterations, %zu unfit |\n",
+               p.k, p.passes, th, w, cpu, n / w, n * (double)p.passes / w, st.mean_iterations,
+               st.unfit);
         tessel_simplify_params sp = tessel_simplify_params_default();
         sp.cluster.spacing = sp.projection.spacing = h;
         sp.cluster.threads = sp.projection.threads = th;
@@ -332,11 +362,11 @@ static void bench_data(const char *dir, uint32_t passes)
 {
     static const char *names[] = {"bunny", "elephant", "knot2"};
     printf("## Accuracy: DIR/NAME.pd.n05.ply against NAME.gt.ply\n\n");
-    printf("RMS / max: distance to the true surface in %% of its bounding-box "
-           "diagonal. Times are wall seconds.\n\n");
-    printf("| data | points | h/diag %% | noisy RMS | smoothed RMS (passes) | gain | time | "
-           "reps | reps RMS | time |\n");
-    printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    printf("RMS / max: distance to the true surface in %% of its bounding-box diagonal; "
+           "median gain: ratio of the median distances. Times are wall seconds.\n\n");
+    printf("| data | points | h/diag %% | noisy RMS / max | smoothed RMS / max (passes) | gain | "
+           "median gain | time | reps | reps RMS / max | time |\n");
+    printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (size_t f = 0; f < sizeof names / sizeof *names; f++) {
         char path[1024];
         tessel_cloud c, s, r;
@@ -363,8 +393,8 @@ static void bench_data(const char *dir, uint32_t passes)
             }
         double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                            (hi[2] - lo[2]) * (hi[2] - lo[2]));
-        double r0, m0, r1, m1, r2, m2, h;
-        cloud_distance(&g, &c, &r0, &m0);
+        double r0, m0, r1, m1, r2, m2, h, md0, md1;
+        cloud_distance3(&g, &c, &r0, &m0, &md0);
         tessel_cloud_spacing(&c, &h);
         tessel_smooth_params p = tessel_smooth_params_default();
         p.passes = passes;
@@ -372,26 +402,27 @@ static void bench_data(const char *dir, uint32_t passes)
         if (tessel_smooth(&c, &s, &p, NULL, NULL) != TESSEL_OK)
             return;
         double ts = now() - t0;
-        cloud_distance(&g, &s, &r1, &m1);
+        cloud_distance3(&g, &s, &r1, &m1, &md1);
         t0 = now();
         tessel_simplify_stats ss;
         if (tessel_simplify(&s, &r, NULL, NULL, &ss) != TESSEL_OK)
             return;
         double tr = now() - t0;
         cloud_distance(&g, &r, &r2, &m2);
-        printf("| %s | %zu | %.3f | %.3f / %.3f | %.3f / %.3f (%u) | %.1fx | %.3f | %zu | %.3f / %.3f "
-               "| %.3f |\n",
+        printf("| %s | %zu | %.3f | %.3f / %.3f | %.3f / %.3f (%u) | %.2fx | %.2fx | %.3f | %zu | "
+               "%.3f / %.3f | %.3f |\n",
                names[f], c.count, 100 * h / diag, 100 * r0 / diag, 100 * m0 / diag,
-               100 * r1 / diag, 100 * m1 / diag, passes, r0 / r1, ts, r.count, 100 * r2 / diag,
-               100 * m2 / diag, tr);
+               100 * r1 / diag, 100 * m1 / diag, passes, r0 / r1, md0 / md1, ts, r.count,
+               100 * r2 / diag, 100 * m2 / diag, tr);
 
         /* Sensitivity: 1-3 passes and sigma_rho. */
         if (f == 0) {
             printf("\n%s, smoothing parameters (RMS %% of diagonal):\n\n", names[f]);
             printf("| sigma_rho | sigma_w | k | passes | RMS | gain |\n|---|---|---|---|---|---|\n");
-            static const double grid[][4] = {{1, 2, 24, 1},   {1.5, 2, 24, 1}, {2.5, 2, 24, 1},
-                                             {1.5, 1.5, 24, 1}, {1.5, 3, 24, 1}, {1.5, 3, 48, 1},
-                                             {1.5, 2, 24, 2}, {1.5, 2, 24, 3}, {2.5, 1.5, 24, 2}};
+            static const double grid[][4] = {
+                {1.5, 2, 24, 1},   {2, 2.5, 24, 1}, {2.5, 2.5, 32, 1}, {1.5, 3, 48, 1},
+                {1, 2.5, 24, 2},   {2, 2.5, 24, 2}, {2.5, 2.5, 24, 2}, {2, 2, 24, 2},
+                {2, 3, 24, 2},     {2, 2.5, 32, 2}, {2, 2.5, 24, 3}, {2.5, 1.5, 24, 2}};
             for (size_t i = 0; i < sizeof grid / sizeof *grid; i++) {
                 tessel_cloud s2;
                 tessel_smooth_params q = tessel_smooth_params_default();
@@ -401,7 +432,7 @@ static void bench_data(const char *dir, uint32_t passes)
                     return;
                 double rr, mm;
                 cloud_distance(&g, &s2, &rr, &mm);
-                printf("| %.1f | %.1f | %u | %u | %.4f | %.1fx |\n", q.sigma_rho, q.sigma_w, q.k,
+                printf("| %.1f | %.1f | %u | %u | %.4f | %.2fx |\n", q.sigma_rho, q.sigma_w, q.k,
                        q.passes, 100 * rr / diag, r0 / rr);
                 tessel_cloud_free(&s2);
             }
@@ -426,9 +457,9 @@ static void bench_data(const char *dir, uint32_t passes)
                        q.cluster.max_diameter, r3.count, 100 * rr / diag);
                 tessel_cloud_free(&r3);
             }
-            printf("\n| data | points | h/diag %% | noisy RMS | smoothed RMS (passes) | gain | time | "
-                   "reps | reps RMS | time |\n");
-            printf("|---|---|---|---|---|---|---|---|---|---|\n");
+            printf("\n| data | points | h/diag %% | noisy RMS / max | smoothed RMS / max (passes) | "
+                   "gain | median gain | time | reps | reps RMS / max | time |\n");
+            printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
         }
         tri_grid_free(&g);
         tessel_cloud_free(&r);
@@ -540,7 +571,7 @@ int main(int argc, char **argv)
 {
     size_t n = 1000000;
     const char *dir = NULL;
-    uint32_t passes = 1;
+    uint32_t passes = tessel_smooth_params_default().passes;
     int speed = 1;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--n") && i + 1 < argc)

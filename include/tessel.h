@@ -927,7 +927,9 @@ typedef struct tessel_simplify_params {
     tessel_cluster_params cluster;    /* defaults as above */
     tessel_smooth_params projection;  /* the operator Q projecting centroids
                                          (passes is ignored); defaults as
-                                         above */
+                                         above except k = 16 and
+                                         sigma_w = 1.5, for an already
+                                         smooth cloud */
     int keep_unfit;                   /* 1: a cluster whose centroid has no
                                          robust fit keeps its centroid as
                                          representative; 0 (default): it gets

@@ -23,7 +23,13 @@ tessel_simplify_params tessel_simplify_params_default(void)
     tessel_simplify_params p;
     memset(&p, 0, sizeof p);
     p.cluster = tessel_cluster_params_default();
+    /* The clustered cloud is normally smooth already: a tighter operator
+     * than for smoothing has less bias on curved parts (on the smoothed
+     * noisy bunny, representatives 0.28% of the diagonal from the surface
+     * with these, 0.32% with the smoothing defaults; bench_smooth). */
     p.projection = tessel_smooth_params_default();
+    p.projection.k = 16;
+    p.projection.sigma_w = 1.5;
     p.keep_unfit = 0;
     return p;
 }

@@ -185,6 +185,13 @@ static inline void moments_add(double o, const double d[3], double *W, double s[
     mm[3] += oy * d[1], mm[4] += oy * d[2], mm[5] += oz * d[2];
 }
 
+/* exp(-x) for x >= 0, in single precision: weights need no more, and
+ * expf is about twice as fast as exp. */
+static inline double weight(double x)
+{
+    return (double)expf((float)-x);
+}
+
 /* The robust fit for one query from its neighbours d[j] (positions minus
  * the query, sorted by distance). On success writes the unit normal n and
  * the offset t (Q = q + t n) and the IRLS iterations; w is scratch of m
@@ -197,7 +204,7 @@ static bool robust_fit(const fit_ctl *f, const double (*d)[3], size_t m, double 
         return false;
     double W = 0.0, s[3] = {0, 0, 0}, mm[6] = {0, 0, 0, 0, 0, 0}, c[3];
     for (size_t j = 0; j < m; j++) {
-        w[j] = exp(-tsl_dot(d[j], d[j]) * f->inv_2sw2);
+        w[j] = weight(tsl_dot(d[j], d[j]) * f->inv_2sw2);
         moments_add(w[j], d[j], &W, s, mm);
     }
     if (!plane_from_moments(W, s, mm, c, n))
@@ -214,7 +221,7 @@ static bool robust_fit(const fit_ctl *f, const double (*d)[3], size_t m, double 
         memset(mm, 0, sizeof mm);
         for (size_t j = 0; j < m; j++) {
             double hq = tsl_dot(n, d[j]) - t;
-            moments_add(w[j] * exp(-hq * hq * f->inv_2sr2), d[j], &W, s, mm);
+            moments_add(w[j] * weight(hq * hq * f->inv_2sr2), d[j], &W, s, mm);
         }
         double n2[3];
         if (!plane_from_moments(W, s, mm, c, n2))
@@ -754,11 +761,12 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
     size_t ns;
     for (;;) {
         ns = 0;
+        /* Branch-free compaction: always store, advance when it passes. */
         for (size_t j = 0; j < m; j++) {
             float dx = b->x[j] - qx, dy = b->y[j] - qy, dz = b->z[j] - qz;
             float d = (dx * dx + dy * dy) + dz * dz;
-            if (d <= thr)
-                b->sel[ns++] = (uint64_t)float_bits(d) << 32 | j;
+            b->sel[ns] = (uint64_t)float_bits(d) << 32 | j;
+            ns += d <= thr;
         }
         if (ns >= t->k || thr >= r2max)
             break;
