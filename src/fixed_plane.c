@@ -154,9 +154,12 @@ static inline int fp_edge(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b, f
 
 /* A triangle (in the array's counter-clockwise order) is kept when it
  * faces the expected way seen along the projection direction; zero area
- * (exactly, from float inputs) counts as flipped. */
-static inline int fp_facing(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b,
-                            const fp_vrec *c)
+ * (exactly, from float inputs) counts as flipped. The sign of
+ * ((b - a) x (c - a)) . w, with w the plane normal or the direction to the
+ * viewpoint, in double: the differences of floats and their products are
+ * exact there, so a zero cross product is a true zero. */
+static int fp_facing_exact(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b,
+                           const fp_vrec *c)
 {
     double e1[3] = {(double)b->p[0] - a->p[0], (double)b->p[1] - a->p[1],
                     (double)b->p[2] - a->p[2]};
@@ -173,6 +176,35 @@ static inline int fp_facing(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b,
     else
         s = n[0] * x->dir[0] + n[1] * x->dir[1] + n[2] * x->dir[2];
     return x->orient > 0 ? s > 0.0 : s < 0.0;
+}
+
+/* The same, first in float: when |s| exceeds 1e-5 of the sum of the
+ * magnitudes of its terms (float rounding is below 1e-6 of it), the float
+ * sign is the exact one; only near-degenerate triangles take the double
+ * path. */
+static inline int fp_facing(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b,
+                            const fp_vrec *c)
+{
+    float e1x = b->p[0] - a->p[0], e1y = b->p[1] - a->p[1], e1z = b->p[2] - a->p[2];
+    float e2x = c->p[0] - a->p[0], e2y = c->p[1] - a->p[1], e2z = c->p[2] - a->p[2];
+    float wx, wy, wz;
+    if (x->kind == FP_RAY) {
+        wx = x->vp[0] - a->p[0];
+        wy = x->vp[1] - a->p[1];
+        wz = x->vp[2] - a->p[2];
+    } else {
+        wx = x->dir[0];
+        wy = x->dir[1];
+        wz = x->dir[2];
+    }
+    float ax = e1y * e2z, bx = e1z * e2y, ay = e1z * e2x, by = e1x * e2z;
+    float az = e1x * e2y, bz = e1y * e2x;
+    float sv = (ax - bx) * wx + (ay - by) * wy + (az - bz) * wz;
+    float mag = fabsf(wx) * (fabsf(ax) + fabsf(bx)) + fabsf(wy) * (fabsf(ay) + fabsf(by)) +
+                fabsf(wz) * (fabsf(az) + fabsf(bz));
+    if (fabsf(sv) > 1e-5f * mag)
+        return x->orient > 0 ? sv > 0.0f : sv < 0.0f;
+    return fp_facing_exact(x, a, b, c);
 }
 
 /* Block codes: bit 0 the diagonal (0: A-D, 1: B-C), bit 1 triangle t0,
@@ -275,40 +307,255 @@ static uint8_t fp_block(const fp_ctx *x, const fp_vrec *A, const fp_vrec *B,
     return (uint8_t)code;
 }
 
-/* Codes of block rows [r0, r1), computing each array row once. */
+/* The block codes are the hot loop (every point, every mode). Rows are
+ * held as structures of arrays and the common case - four points, the
+ * shorter diagonal passing, both triangles facing the right way by a clear
+ * margin - is computed for a whole row in loops without branches, which
+ * the compiler vectorizes; the other blocks go through fp_block(). */
+typedef struct fp_soa {
+    float *px, *py, *pz, *dx, *dy, *dz, *w;
+    int32_t *ok;
+} fp_soa;
+
+/* Scratch of one thread: two rows (w + 1 entries: with wrapped columns,
+ * entry w repeats entry 0) and the per-row edge tests. */
+typedef struct fp_scratch {
+    fp_soa row[2];
+    int32_t *hk[2], *vk;
+    float *len2;             /* lengths fp_soa_edges() writes, unused here */
+    void *mem;
+} fp_scratch;
+
+static tessel_status fp_scratch_alloc(fp_scratch *sc, uint32_t w)
+{
+    size_t n = (size_t)w + 1;
+    memset(sc, 0, sizeof *sc);
+    /* 2 rows x 8 arrays + 4 edge arrays, 4 bytes each */
+    sc->mem = tsl_alloc_array(n, (2 * 8 + 4) * sizeof(float));
+    if (!sc->mem)
+        return TESSEL_ERR_NOMEM;
+    float *f = sc->mem;
+    for (int k = 0; k < 2; k++) {
+        fp_soa *r = &sc->row[k];
+        r->px = f, f += n;
+        r->py = f, f += n;
+        r->pz = f, f += n;
+        r->dx = f, f += n;
+        r->dy = f, f += n;
+        r->dz = f, f += n;
+        r->w = f, f += n;
+        r->ok = (int32_t *)f, f += n;
+    }
+    sc->hk[0] = (int32_t *)f, f += n;
+    sc->hk[1] = (int32_t *)f, f += n;
+    sc->vk = (int32_t *)f, f += n;
+    sc->len2 = f;
+    return TESSEL_OK;
+}
+
+/* Loads array row r: positions, and directions and ranges (ray) or heights
+ * (plane). Missing or unusable points have ok = 0 and zero coordinates. */
+static void fp_soa_row(const fp_ctx *x, uint32_t r, fp_soa *o)
+{
+    const uint32_t w = x->w;
+    const uint32_t *row = x->idx + (size_t)r * w;
+    float *restrict px = o->px, *restrict py = o->py, *restrict pz = o->pz;
+    float *restrict dx = o->dx, *restrict dy = o->dy, *restrict dz = o->dz, *restrict ww = o->w;
+    int32_t *restrict ok = o->ok;
+    for (uint32_t c = 0; c < w; c++) {
+        uint32_t i = row[c];
+        if (i == TESSEL_NONE) {
+            px[c] = py[c] = pz[c] = 0.0f;
+            ok[c] = 0;
+            continue;
+        }
+        const float *p = x->xyz + 3 * (size_t)i;
+        px[c] = p[0];
+        py[c] = p[1];
+        pz[c] = p[2];
+        ok[c] = 1;
+    }
+    if (x->kind == FP_RAY) {
+        const float vx = x->vp[0], vy = x->vp[1], vz = x->vp[2];
+        for (uint32_t c = 0; c < w; c++) {
+            float ex = px[c] - vx, ey = py[c] - vy, ez = pz[c] - vz;
+            float rr = sqrtf(ex * ex + ey * ey + ez * ez);
+            int good = ok[c] & (rr > 0.0f) & (rr < FLT_MAX);
+            float inv = good ? 1.0f / rr : 0.0f;
+            dx[c] = ex * inv;
+            dy[c] = ey * inv;
+            dz[c] = ez * inv;
+            ww[c] = good ? rr : 0.0f;
+            ok[c] = good;
+        }
+    } else {
+        const float nx = x->dir[0], ny = x->dir[1], nz = x->dir[2];
+        for (uint32_t c = 0; c < w; c++) {
+            float h = nx * px[c] + ny * py[c] + nz * pz[c];
+            int good = ok[c] & (fabsf(h) < FLT_MAX);
+            dx[c] = dy[c] = dz[c] = 0.0f;
+            ww[c] = good ? h : 0.0f;
+            ok[c] = good;
+        }
+    }
+    if (x->wrap_c) {
+        px[w] = px[0], py[w] = py[0], pz[w] = pz[0];
+        dx[w] = dx[0], dy[w] = dy[0], dz[w] = dz[0];
+        ww[w] = ww[0], ok[w] = ok[0];
+    }
+}
+
+/* out[i] = the edge test between entry oa + i of row a and ob + i of row
+ * b (both present), for i < n; len2[i] its squared length. */
+static void fp_soa_edges(const fp_ctx *x, const fp_soa *a, size_t oa, const fp_soa *b,
+                         size_t ob, size_t n, int32_t *restrict out, float *restrict len2)
+{
+    const float *restrict apx = a->px + oa, *restrict apy = a->py + oa, *restrict apz = a->pz + oa;
+    const float *restrict bpx = b->px + ob, *restrict bpy = b->py + ob, *restrict bpz = b->pz + ob;
+    const float *restrict aw = a->w + oa, *restrict bw = b->w + ob;
+    const int32_t *restrict aok = a->ok + oa, *restrict bok = b->ok + ob;
+    const float reach2 = x->reach2, margin2 = x->margin2;
+    if (x->kind == FP_RAY) {
+        const float *restrict adx = a->dx + oa, *restrict ady = a->dy + oa,
+                              *restrict adz = a->dz + oa;
+        const float *restrict bdx = b->dx + ob, *restrict bdy = b->dy + ob,
+                              *restrict bdz = b->dz + ob;
+        for (size_t i = 0; i < n; i++) {
+            float ex = apx[i] - bpx[i], ey = apy[i] - bpy[i], ez = apz[i] - bpz[i];
+            float l2 = ex * ex + ey * ey + ez * ez;
+            float fx = adx[i] - bdx[i], fy = ady[i] - bdy[i], fz = adz[i] - bdz[i];
+            float rm = aw[i] < bw[i] ? aw[i] : bw[i];
+            float s2 = rm * rm * (fx * fx + fy * fy + fz * fz);
+            out[i] = (l2 <= reach2 * s2 + margin2) & aok[i] & bok[i];
+            len2[i] = l2;
+        }
+    } else {
+        for (size_t i = 0; i < n; i++) {
+            float ex = apx[i] - bpx[i], ey = apy[i] - bpy[i], ez = apz[i] - bpz[i];
+            float l2 = ex * ex + ey * ey + ez * ez;
+            float dh = aw[i] - bw[i];
+            float s2 = l2 - dh * dh;
+            out[i] = (l2 <= reach2 * s2 + margin2) & aok[i] & bok[i];
+            len2[i] = l2;
+        }
+    }
+}
+
+/* Facing value (((b - a) x (c - a)) . w) against the magnitude bound of
+ * fp_facing(): 1 when surely facing. ray is a constant at each call, so
+ * the row kernel has no branch. */
+static inline int32_t fp_facing_sure(int ray, const float v[3], float orient, float ax,
+                                     float ay, float az, float bx, float by, float bz, float cx,
+                                     float cy, float cz)
+{
+    float e1x = bx - ax, e1y = by - ay, e1z = bz - az;
+    float e2x = cx - ax, e2y = cy - ay, e2z = cz - az;
+    float wx = ray ? v[0] - ax : v[0], wy = ray ? v[1] - ay : v[1], wz = ray ? v[2] - az : v[2];
+    float p1 = e1y * e2z, q1 = e1z * e2y, p2 = e1z * e2x, q2 = e1x * e2z;
+    float p3 = e1x * e2y, q3 = e1y * e2x;
+    float sv = ((p1 - q1) * wx + (p2 - q2) * wy + (p3 - q3) * wz) * orient;
+    float mag = fabsf(wx) * (fabsf(p1) + fabsf(q1)) + fabsf(wy) * (fabsf(p2) + fabsf(q2)) +
+                fabsf(wz) * (fabsf(p3) + fabsf(q3));
+    return sv > 1e-5f * mag;
+}
+
+/* The edge test of fp_soa_edges() for the row kernel: a and b are the two
+ * ends' (x, y, z, dx, dy, dz, w) and ok; writes the squared length. */
+static inline int32_t fp_edge_v(int ray, float reach2, float margin2, const float a[7],
+                                int32_t aok, const float b[7], int32_t bok, float *len2)
+{
+    float ex = a[0] - b[0], ey = a[1] - b[1], ez = a[2] - b[2];
+    float l2 = ex * ex + ey * ey + ez * ez, s2;
+    if (ray) {
+        float fx = a[3] - b[3], fy = a[4] - b[4], fz = a[5] - b[5];
+        float rm = a[6] < b[6] ? a[6] : b[6];
+        s2 = rm * rm * (fx * fx + fy * fy + fz * fz);
+    } else {
+        float dh = a[6] - b[6];
+        s2 = l2 - dh * dh;
+    }
+    *len2 = l2;
+    return (l2 <= reach2 * s2 + margin2) & aok & bok;
+}
+
+/* The common case of a row of blocks (see above); 0xff marks the others. */
+static inline void fp_row_kernel(int ray, const float v[3], float orient, float reach2,
+                                 float margin2, uint32_t cw, const fp_soa *T, const fp_soa *B,
+                                 const int32_t *restrict vk, const int32_t *restrict hkt,
+                                 const int32_t *restrict hkb, uint8_t *restrict out)
+{
+    const float *restrict tx = T->px, *restrict ty = T->py, *restrict tz = T->pz;
+    const float *restrict tdx = T->dx, *restrict tdy = T->dy, *restrict tdz = T->dz;
+    const float *restrict tw = T->w;
+    const int32_t *restrict tok = T->ok;
+    const float *restrict bx = B->px, *restrict by = B->py, *restrict bz = B->pz;
+    const float *restrict bdx = B->dx, *restrict bdy = B->dy, *restrict bdz = B->dz;
+    const float *restrict bw = B->w;
+    const int32_t *restrict bok = B->ok;
+    for (uint32_t c = 0; c < cw; c++) {
+        const float A[7] = {tx[c], ty[c], tz[c], tdx[c], tdy[c], tdz[c], tw[c]};
+        const float Bq[7] = {tx[c + 1],  ty[c + 1],  tz[c + 1], tdx[c + 1],
+                             tdy[c + 1], tdz[c + 1], tw[c + 1]};
+        const float C[7] = {bx[c], by[c], bz[c], bdx[c], bdy[c], bdz[c], bw[c]};
+        const float D[7] = {bx[c + 1],  by[c + 1],  bz[c + 1], bdx[c + 1],
+                            bdy[c + 1], bdz[c + 1], bw[c + 1]};
+        float adl, bcl;
+        int32_t adk = fp_edge_v(ray, reach2, margin2, A, tok[c], D, bok[c + 1], &adl);
+        int32_t bck = fp_edge_v(ray, reach2, margin2, Bq, tok[c + 1], C, bok[c], &bcl);
+        int32_t d = 1 - (adk & ((1 - bck) | (adl <= bcl)));
+        int32_t dok = d ? bck : adk;
+        int32_t e0 = hkt[c] & (d ? vk[c] : vk[c + 1]);
+        int32_t e1 = hkb[c] & (d ? vk[c + 1] : vk[c]);
+        /* t0 = (A, B, d ? C : D), t1 = (d ? B : A, D, C) */
+        float Xx = d ? C[0] : D[0], Xy = d ? C[1] : D[1], Xz = d ? C[2] : D[2];
+        float Yx = d ? Bq[0] : A[0], Yy = d ? Bq[1] : A[1], Yz = d ? Bq[2] : A[2];
+        int32_t f0 = fp_facing_sure(ray, v, orient, A[0], A[1], A[2], Bq[0], Bq[1], Bq[2], Xx,
+                                    Xy, Xz);
+        int32_t f1 = fp_facing_sure(ray, v, orient, Yx, Yy, Yz, D[0], D[1], D[2], C[0], C[1],
+                                    C[2]);
+        int32_t fast = dok & e0 & e1 & f0 & f1;
+        out[c] = fast ? (uint8_t)(d | FP_T0 | FP_T1) : (uint8_t)0xff;
+    }
+}
+
+static inline fp_vrec fp_soa_get(const fp_soa *s, size_t c)
+{
+    fp_vrec v = {{s->px[c], s->py[c], s->pz[c]}, {s->dx[c], s->dy[c], s->dz[c]}, s->w[c],
+                 (uint32_t)s->ok[c]};
+    return v;
+}
+
+/* Codes of block rows [r0, r1), loading each array row once. */
 static void fp_codes_rows(const fp_ctx *x, uint32_t r0, uint32_t r1, uint8_t *codes,
-                          fp_vrec *rec0, fp_vrec *rec1, uint8_t *h0, uint8_t *h1,
-                          uint8_t *vf, fp_counts *cnt)
+                          fp_scratch *sc, fp_counts *cnt)
 {
     const uint32_t w = x->w, cw = x->cw;
-    float l2;
-    fp_row(x, r0, rec0);
-    for (uint32_t c = 0; c < cw; c++) {
-        uint32_t cn = c + 1 == w ? 0 : c + 1;
-        h0[c] = (uint8_t)(rec0[c].ok && rec0[cn].ok && fp_edge(x, &rec0[c], &rec0[cn], &l2));
-    }
+    const size_t nv = (size_t)w + (x->wrap_c ? 1 : 0); /* vertical edges incl. wrap copy */
+    int cur = 0;
+    fp_soa_row(x, r0, &sc->row[cur]);
+    fp_soa_edges(x, &sc->row[cur], 0, &sc->row[cur], 1, cw, sc->hk[cur], sc->len2);
     for (uint32_t r = r0; r < r1; r++) {
-        uint32_t rn = r + 1 == x->h ? 0 : r + 1;
-        fp_row(x, rn, rec1);
-        for (uint32_t c = 0; c < cw; c++) {
-            uint32_t cn = c + 1 == w ? 0 : c + 1;
-            h1[c] = (uint8_t)(rec1[c].ok && rec1[cn].ok &&
-                              fp_edge(x, &rec1[c], &rec1[cn], &l2));
-        }
-        for (uint32_t c = 0; c < w; c++)
-            vf[c] = (uint8_t)(rec0[c].ok && rec1[c].ok && fp_edge(x, &rec0[c], &rec1[c], &l2));
+        const fp_soa *T = &sc->row[cur], *B = &sc->row[cur ^ 1];
+        fp_soa_row(x, r + 1 == x->h ? 0 : r + 1, &sc->row[cur ^ 1]);
+        fp_soa_edges(x, B, 0, B, 1, cw, sc->hk[cur ^ 1], sc->len2);
+        fp_soa_edges(x, T, 0, B, 0, nv, sc->vk, sc->len2);
+        const int32_t *hkt = sc->hk[cur], *hkb = sc->hk[cur ^ 1];
         uint8_t *out = codes + (size_t)r * cw;
+        if (x->kind == FP_RAY)
+            fp_row_kernel(1, x->vp, (float)x->orient, x->reach2, x->margin2, cw, T, B, sc->vk,
+                          hkt, hkb, out);
+        else
+            fp_row_kernel(0, x->dir, (float)x->orient, x->reach2, x->margin2, cw, T, B, sc->vk,
+                          hkt, hkb, out);
+        /* The rest, one block at a time. */
         for (uint32_t c = 0; c < cw; c++) {
-            uint32_t cn = c + 1 == w ? 0 : c + 1;
-            out[c] = fp_block(x, &rec0[c], &rec0[cn], &rec1[c], &rec1[cn], h0[c], h1[c],
-                              vf[c], vf[cn], cnt);
+            if (out[c] != 0xff)
+                continue;
+            fp_vrec A = fp_soa_get(T, c), Bv = fp_soa_get(T, c + 1), C = fp_soa_get(B, c),
+                    D = fp_soa_get(B, c + 1);
+            out[c] = fp_block(x, &A, &Bv, &C, &D, hkt[c], hkb[c], sc->vk[c], sc->vk[c + 1], cnt);
         }
-        fp_vrec *tr = rec0;
-        rec0 = rec1;
-        rec1 = tr;
-        uint8_t *th = h0;
-        h0 = h1;
-        h1 = th;
+        cur ^= 1;
     }
 }
 
@@ -466,7 +713,16 @@ static tessel_status fp_make_manifold(const fp_ctx *x, uint8_t *codes, size_t *r
     (void)nt;
 #pragma omp parallel for schedule(static) num_threads(nt)
     for (int64_t r = 0; r < (int64_t)x->h; r++) {
+        /* Block rows above and below the vertex row; a vertex whose four
+         * blocks hold both their triangles has a closed fan. */
+        const uint8_t *up = r > 0 ? codes + (size_t)(r - 1) * x->cw
+                            : x->wrap_r ? codes + (size_t)(x->ch - 1) * x->cw
+                                        : NULL;
+        const uint8_t *dn = (uint64_t)r < x->ch ? codes + (size_t)r * x->cw : NULL;
         for (uint32_t c = 0; c < x->w; c++) {
+            if (up && dn && c >= 1 && c < x->cw &&
+                ((up[c - 1] & up[c] & dn[c - 1] & dn[c]) & (FP_T0 | FP_T1)) == (FP_T0 | FP_T1))
+                continue;
             if (fp_fans(fp_link_mask(x, codes, (uint32_t)r, c)) > 1) {
                 bad[r] = 1;
                 break;
@@ -707,7 +963,7 @@ static tessel_status fp_estimate_noise(const fp_ctx *x, double *sigma)
     if (x->w < 3 || x->h < 2)
         return TESSEL_OK;
     uint32_t step = 1;
-    while ((uint64_t)(x->h / step) * x->w > (uint64_t)4 * FP_SAMPLE)
+    while ((uint64_t)(x->h / step) * x->w > (uint64_t)FP_SAMPLE)
         step++;
     size_t cap = (size_t)(x->h / step + 1) * x->w;
     float *res = tsl_alloc_array(cap, sizeof(float));
@@ -1115,27 +1371,80 @@ typedef struct fp_dexels {
     uint32_t w, h;
     int wrap_c;
     double cell[2];
+    float lo[2];             /* corner of dexel (0, 0) */
     uint32_t *rep;
     size_t reps, filled;
     uint32_t *filled_slots;  /* the filled dexels, in raster order */
 } fp_dexels;
 
+/* The dexel of a mapped point (s, t) and its position inside it, (u, v)
+ * in [0, 1]^2. Points on or past the border go to the border dexels. */
+static inline uint32_t fp_dexel_of(const fp_dexels *dx, float inv0, float inv1, float s,
+                                   float t, float *u, float *v)
+{
+    const float w = (float)dx->w, h = (float)dx->h;
+    float fs = (s - dx->lo[0]) * inv0, ft = (t - dx->lo[1]) * inv1;
+    fs = fs < -1.0f ? -1.0f : fs > w + 1.0f ? w + 1.0f : fs;
+    ft = ft < -1.0f ? -1.0f : ft > h + 1.0f ? h + 1.0f : ft;
+    float cs = floorf(fs), ct = floorf(ft);
+    float us = fs - cs, vt = ft - ct;
+    int64_t c = (int64_t)cs, r = (int64_t)ct;
+    if (dx->wrap_c) /* c is in [-1, w + 1] */
+        c = c < 0 ? c + (int64_t)dx->w : c >= (int64_t)dx->w ? c - (int64_t)dx->w : c;
+    else if (c < 0)
+        c = 0, us = 0.0f;
+    else if (c >= (int64_t)dx->w)
+        c = (int64_t)dx->w - 1, us = 1.0f;
+    if (r < 0)
+        r = 0, vt = 0.0f;
+    else if (r >= (int64_t)dx->h)
+        r = (int64_t)dx->h - 1, vt = 1.0f;
+    *u = us;
+    *v = vt;
+    return (uint32_t)((uint64_t)r * dx->w + (uint64_t)c);
+}
+
+/* Position (u, v) in [0, 1]^2 of a mapped point inside its known dexel k. */
+static inline void fp_uv_in(const fp_dexels *dx, float inv0, float inv1, size_t k, float s,
+                            float t, float *u, float *v)
+{
+    float fu = (s - dx->lo[0]) * inv0 - (float)(k % dx->w);
+    float fv = (t - dx->lo[1]) * inv1 - (float)(k / dx->w);
+    if (dx->wrap_c) /* a point just below phi = 0 sits in the last column */
+        fu = fu < -0.5f * (float)dx->w ? fu + (float)dx->w
+           : fu > 0.5f * (float)dx->w  ? fu - (float)dx->w
+                                       : fu;
+    *u = fu < 0.0f ? 0.0f : fu > 1.0f ? 1.0f : fu;
+    *v = fv < 0.0f ? 0.0f : fv > 1.0f ? 1.0f : fv;
+}
+
 /* Squared distance, in world units (height) or radians (range), from a
  * point at (u, v) in dexel (r + dr, c + dc) to the centre of dexel (r, c). */
-static double fp_centre_d2(const fp_dexels *dx, const fp_pair *q, int dr, int dc)
+static inline double fp_centre_d2(const fp_dexels *dx, float u, float v, int dr, int dc)
 {
-    double ds = (dc + q->u * (1.0 / 65535.0) - 0.5) * dx->cell[0];
-    double dt = (dr + q->v * (1.0 / 65535.0) - 0.5) * dx->cell[1];
+    double ds = (dc + u - 0.5) * dx->cell[0];
+    double dt = (dr + v - 0.5) * dx->cell[1];
     return ds * ds + dt * dt;
 }
 
+/* Where the points of each dexel are: dexel k holds points
+ * order[k == 0 ? 0 : start[k-1] .. start[k]) (after the scatter, start[k]
+ * is the end of dexel k); map holds (s, t, depth) per point. */
+typedef struct fp_buckets {
+    const float *map;
+    uint32_t *start, *order;
+    float inv0, inv1;
+} fp_buckets;
+
 /* A sampling gap of one dexel should not become a hole: an empty dexel
  * next to dexels holding spare points (not their representative) takes the
- * spare point nearest its centre. Raster order, first come first served.
- * start[k] is the end of dexel k's points in pairs. A filled dexel's point
- * lies outside it, which can make its triangles overlap their neighbours
- * in projection: fp_untangle() checks them. */
-static tessel_status fp_fill_empty(fp_dexels *dx, const uint32_t *start, fp_pair *pairs)
+ * spare point nearest its centre, if it is nearer than the donor's own
+ * representative (so the two keep their order and the blocks between them
+ * do not fold). Raster order, first come first served; a taken point is
+ * struck from its dexel's list. A filled dexel's point lies outside it,
+ * which can still make its triangles overlap their neighbours in
+ * projection: fp_untangle() checks them. */
+static tessel_status fp_fill_empty(fp_dexels *dx, fp_buckets *bk)
 {
     const uint32_t w = dx->w, h = dx->h;
     size_t filled = 0, cap = 0;
@@ -1145,7 +1454,7 @@ static tessel_status fp_fill_empty(fp_dexels *dx, const uint32_t *start, fp_pair
             if (dx->rep[k] != TESSEL_NONE)
                 continue;
             double best = INFINITY;
-            fp_pair *pick = NULL;
+            uint32_t *pick = NULL;
             for (int dr = -1; dr <= 1; dr++) {
                 for (int dc = -1; dc <= 1; dc++) {
                     int64_t nr = (int64_t)r + dr, nc = (int64_t)c + dc;
@@ -1157,26 +1466,26 @@ static tessel_status fp_fill_empty(fp_dexels *dx, const uint32_t *start, fp_pair
                         nc = (nc + (int64_t)w) % (int64_t)w;
                     }
                     size_t j = (size_t)nr * w + (size_t)nc;
-                    uint32_t b = j == 0 ? 0 : start[j - 1], e = start[j];
+                    uint32_t b = j == 0 ? 0 : bk->start[j - 1], e = bk->start[j];
                     if (e - b < 2)
                         continue;
-                    /* Only points on this side of the donor's representative:
-                     * nearer to this centre than it is, so the two keep their
-                     * order and the blocks between them do not fold. */
                     double limit = INFINITY;
-                    for (uint32_t q = b; q < e; q++)
-                        if (pairs[q].index == dx->rep[j])
-                            limit = fp_centre_d2(dx, &pairs[q], dr, dc);
+                    float u, v;
+                    const float *m = bk->map + 3 * (size_t)dx->rep[j];
+                    fp_uv_in(dx, bk->inv0, bk->inv1, j, m[0], m[1], &u, &v);
+                    limit = fp_centre_d2(dx, u, v, dr, dc);
                     for (uint32_t q = b; q < e; q++) {
-                        uint32_t i = pairs[q].index;
+                        uint32_t i = bk->order[q];
                         if (i == TESSEL_NONE || i == dx->rep[j])
                             continue;
-                        double d2 = fp_centre_d2(dx, &pairs[q], dr, dc);
+                        m = bk->map + 3 * (size_t)i;
+                        fp_uv_in(dx, bk->inv0, bk->inv1, j, m[0], m[1], &u, &v);
+                        double d2 = fp_centre_d2(dx, u, v, dr, dc);
                         if (!(d2 < limit))
                             continue;
-                        if (d2 < best || (d2 == best && i < pick->index)) {
+                        if (d2 < best || (d2 == best && i < *pick)) {
                             best = d2;
-                            pick = &pairs[q];
+                            pick = &bk->order[q];
                         }
                     }
                 }
@@ -1185,8 +1494,8 @@ static tessel_status fp_fill_empty(fp_dexels *dx, const uint32_t *start, fp_pair
                 if (tsl_grow((void **)&dx->filled_slots, &cap, filled + 1, sizeof(uint32_t)) !=
                     TESSEL_OK)
                     return TESSEL_ERR_NOMEM;
-                dx->rep[k] = pick->index;
-                pick->index = TESSEL_NONE;
+                dx->rep[k] = *pick;
+                *pick = TESSEL_NONE;
                 dx->filled_slots[filled++] = (uint32_t)k;
             }
         }
@@ -1211,9 +1520,10 @@ static uint32_t fp_representative(const fp_dexels *dx, fp_pair *a, size_t n)
             fp_pair_select(a + k1, n - k1, k2 - k1);
     }
     size_t best = k1;
-    double bd = fp_centre_d2(dx, &a[k1], 0, 0);
-    for (size_t k = k1 + 1; k <= k2; k++) {
-        double d2 = fp_centre_d2(dx, &a[k], 0, 0);
+    double bd = INFINITY;
+    for (size_t k = k1; k <= k2; k++) {
+        double d2 = fp_centre_d2(dx, a[k].u * (1.0f / 65535.0f), a[k].v * (1.0f / 65535.0f),
+                                 0, 0);
         if (d2 < bd || (d2 == bd && fp_pair_less(a[k], a[best]))) {
             bd = d2;
             best = k;
@@ -1222,119 +1532,99 @@ static uint32_t fp_representative(const fp_dexels *dx, fp_pair *a, size_t n)
     return a[best].index;
 }
 
-/* Buckets the points into a w x h array over [lo, lo + size*cell) and
- * keeps, per dexel, the point at the median depth (the lower median for
- * an even count; ties by index). */
-static tessel_status fp_bucket(const tessel_cloud *cloud, const fp_frame *f, const float lo[2],
-                               fp_dexels *dx, int nt, const tessel_callbacks *cb)
+/* Buckets the mapped points into the w x h dexels (a stable counting sort
+ * of point indices) and picks each dexel's representative. */
+static tessel_status fp_bucket(const float *map, size_t n, fp_dexels *dx, int nt,
+                               const tessel_callbacks *cb)
 {
-    size_t n = cloud->count, cells;
+    size_t cells;
     if (!tsl_mul_size(dx->w, dx->h, &cells) || cells >= UINT32_MAX)
         return TESSEL_ERR_LIMIT;
-    uint32_t *id = tsl_alloc_array(n, sizeof(uint32_t));
-    uint32_t *start = tsl_calloc_array(cells + 1, sizeof(uint32_t));
+    fp_buckets bk = {map, NULL, NULL, (float)(1.0 / dx->cell[0]), (float)(1.0 / dx->cell[1])};
+    bk.start = tsl_calloc_array(cells + 1, sizeof(uint32_t));
     dx->rep = tsl_alloc_array(cells, sizeof(uint32_t));
-    if (!id || !start || !dx->rep) {
-        free(id);
-        free(start);
+    if (!bk.start || !dx->rep) {
+        free(bk.start);
         return TESSEL_ERR_NOMEM;
     }
-    const float inv0 = (float)(1.0 / dx->cell[0]), inv1 = (float)(1.0 / dx->cell[1]);
-    const uint32_t w = dx->w, h = dx->h;
-    const int wrap = dx->wrap_c;
-    (void)nt;
-#pragma omp parallel for schedule(static) num_threads(nt)
-    for (int64_t i = 0; i < (int64_t)n; i++) {
-        float s, t, d;
-        uint32_t out = TESSEL_NONE;
-        if (fp_map(f, cloud->xyz + 3 * (size_t)i, &s, &t, &d)) {
-            float fs = (s - lo[0]) * inv0, ft = (t - lo[1]) * inv1;
-            int64_t cs = (int64_t)floorf(fs), ct = (int64_t)floorf(ft);
-            if (wrap)
-                cs = ((cs % (int64_t)w) + (int64_t)w) % (int64_t)w;
-            else
-                cs = cs < 0 ? 0 : cs >= (int64_t)w ? (int64_t)w - 1 : cs;
-            ct = ct < 0 ? 0 : ct >= (int64_t)h ? (int64_t)h - 1 : ct;
-            out = (uint32_t)((uint64_t)ct * w + (uint64_t)cs);
-        }
-        id[i] = out;
-    }
-    tessel_status status = tsl_progress(cb, "dexels", 0.3);
-    if (status != TESSEL_OK) {
-        free(id);
-        free(start);
-        return status;
-    }
+    float u, v;
     size_t valid = 0;
     for (size_t i = 0; i < n; i++) {
-        if (id[i] != TESSEL_NONE) {
-            start[id[i] + 1]++;
-            valid++;
-        }
+        const float *m = map + 3 * i;
+        if (m[0] != m[0])
+            continue;
+        bk.start[fp_dexel_of(dx, bk.inv0, bk.inv1, m[0], m[1], &u, &v) + 1]++;
+        valid++;
     }
-    for (size_t k = 0; k < cells; k++)
-        start[k + 1] += start[k];
-    fp_pair *pairs = tsl_alloc_array(valid, sizeof(fp_pair));
-    if (!pairs) {
-        free(id);
-        free(start);
+    uint32_t most = 0;
+    for (size_t k = 0; k < cells; k++) {
+        most = bk.start[k + 1] > most ? bk.start[k + 1] : most;
+        bk.start[k + 1] += bk.start[k];
+    }
+    bk.order = tsl_alloc_array(valid, sizeof(uint32_t));
+    if (!bk.order) {
+        free(bk.start);
         return TESSEL_ERR_NOMEM;
     }
-    /* Stable scatter: start[k] ends at the end of dexel k. */
     for (size_t i = 0; i < n; i++) {
-        uint32_t k = id[i];
-        if (k == TESSEL_NONE)
+        const float *m = map + 3 * i;
+        if (m[0] != m[0])
             continue;
-        float s, t, d;
-        fp_map(f, cloud->xyz + 3 * i, &s, &t, &d);
-        float fs = (s - lo[0]) * inv0 - (float)(k % w), ft = (t - lo[1]) * inv1 - (float)(k / w);
-        if (wrap)
-            fs -= floorf(fs);
-        fs = fs < 0.0f ? 0.0f : fs > 1.0f ? 1.0f : fs;
-        ft = ft < 0.0f ? 0.0f : ft > 1.0f ? 1.0f : ft;
-        pairs[start[k]++] =
-            (fp_pair){d, (uint32_t)i, (uint16_t)(fs * 65535.0f + 0.5f),
-                      (uint16_t)(ft * 65535.0f + 0.5f)};
+        bk.order[bk.start[fp_dexel_of(dx, bk.inv0, bk.inv1, m[0], m[1], &u, &v)]++] =
+            (uint32_t)i;
     }
-    free(id);
-    status = tsl_progress(cb, "dexels", 0.7);
-    if (status != TESSEL_OK) {
-        free(start);
-        free(pairs);
-        return status;
-    }
+    tessel_status status = tsl_progress(cb, "dexels", 0.7);
     uint32_t *rep = dx->rep;
     size_t reps = 0;
-#pragma omp parallel for schedule(dynamic, 64) reduction(+ : reps) num_threads(nt)
-    for (int64_t k = 0; k < (int64_t)cells; k++) {
-        uint32_t b = k == 0 ? 0 : start[k - 1], e = start[k];
-        if (b == e) {
+    int failed = 0;
+    (void)nt;
+#pragma omp parallel num_threads(nt) reduction(+ : reps, failed)
+    {
+        fp_pair *buf = tsl_alloc_array(most ? most : 1, sizeof(fp_pair));
+#pragma omp for schedule(dynamic, 256)
+        for (int64_t k = 0; k < (int64_t)cells; k++) {
+            uint32_t b = k == 0 ? 0 : bk.start[k - 1], e = bk.start[k];
             rep[k] = TESSEL_NONE;
-            continue;
+            if (b == e)
+                continue;
+            if (!buf) {
+                failed++;
+                continue;
+            }
+            for (uint32_t q = b; q < e; q++) {
+                uint32_t i = bk.order[q];
+                const float *m = map + 3 * (size_t)i;
+                float uu, vv;
+                fp_uv_in(dx, bk.inv0, bk.inv1, (size_t)k, m[0], m[1], &uu, &vv);
+                buf[q - b] = (fp_pair){m[2], i, (uint16_t)(uu * 65535.0f + 0.5f),
+                                       (uint16_t)(vv * 65535.0f + 0.5f)};
+            }
+            rep[k] = fp_representative(dx, buf, e - b);
+            reps++;
         }
-        rep[k] = fp_representative(dx, pairs + b, e - b);
-        reps++;
+        free(buf);
     }
+    if (failed && status == TESSEL_OK)
+        status = TESSEL_ERR_NOMEM;
     dx->reps = reps;
-    tessel_status st = fp_fill_empty(dx, start, pairs);
+    if (status == TESSEL_OK)
+        status = fp_fill_empty(dx, &bk);
     dx->reps += dx->filled;
-    free(start);
-    free(pairs);
-    return st;
+    free(bk.start);
+    free(bk.order);
+    return status;
 }
 
 /* Chooses the array size: given, from a cell size, or so that occupied
  * dexels hold points_per_dexel points on average (the occupied area is
- * measured on a coarse probe grid filled with the sample). */
-static tessel_status fp_size(const tessel_cloud *cloud, const fp_frame *f, const float lo[2],
+ * measured on a coarse probe grid filled with a sample). */
+static tessel_status fp_size(const float *map, size_t n, int kind, const float lo[2],
                              const float hi[2], const tessel_fixed_plane_params *p,
                              size_t valid, int full_circle, fp_dexels *dx)
 {
     double ext[2] = {(double)hi[0] - lo[0], (double)hi[1] - lo[1]};
     if (full_circle)
         ext[0] = 2.0 * FP_PI;
-    /* Range mode: dexel area shrinks like sin(theta); the automatic cell
-     * is set on the solid angle. */
     if (p->columns > 0 && p->rows > 0) {
         dx->w = p->columns;
         dx->h = p->rows;
@@ -1349,12 +1639,12 @@ static tessel_status fp_size(const tessel_cloud *cloud, const fp_frame *f, const
         if (!occ)
             return TESSEL_ERR_NOMEM;
         double ps = ext[0] > 0 ? ext[0] / PROBE : 1.0, pt = ext[1] > 0 ? ext[1] / PROBE : 1.0;
-        size_t step = fp_sample_step(cloud->count), m = 0;
-        for (size_t i = 0; i < cloud->count; i += step) {
-            float s, t, d;
-            if (!fp_map(f, cloud->xyz + 3 * i, &s, &t, &d))
+        size_t step = fp_sample_step(n), m = 0;
+        for (size_t i = 0; i < n; i += step) {
+            const float *q = map + 3 * i;
+            if (q[0] != q[0])
                 continue;
-            int a = (int)((s - lo[0]) / ps), b = (int)((t - lo[1]) / pt);
+            int a = (int)((q[0] - lo[0]) / ps), b = (int)((q[1] - lo[1]) / pt);
             a = a < 0 ? 0 : a >= PROBE ? PROBE - 1 : a;
             b = b < 0 ? 0 : b >= PROBE ? PROBE - 1 : b;
             occ[(size_t)b * PROBE + a] = 1;
@@ -1374,8 +1664,10 @@ static tessel_status fp_size(const tessel_cloud *cloud, const fp_frame *f, const
                         any = occ[(size_t)j * PROBE + i];
                 if (!any)
                     continue;
+                /* range: dexel area shrinks like sin(theta); the cell is
+                 * set on the solid angle */
                 double cellarea = ps * pt * k * k;
-                if (f->kind == FP_RAY)
+                if (kind == FP_RAY)
                     cellarea *= sin(lo[1] + (b + 0.5 * k) * pt);
                 area += cellarea;
             }
@@ -1402,10 +1694,12 @@ static tessel_status fp_size(const tessel_cloud *cloud, const fp_frame *f, const
     return TESSEL_OK;
 }
 
-/* Bounding box of the mapped points (parallel min/max are exact, so the
- * result does not depend on the thread count). */
-static size_t fp_bounds(const tessel_cloud *cloud, const fp_frame *f, float lo[2], float hi[2],
-                        int nt)
+/* Maps every point once: map[3i..3i+2] = (s, t, depth), s = NaN for a
+ * point that cannot be mapped; returns the number mapped and their
+ * bounding box (parallel min/max are exact: no dependence on the thread
+ * count). */
+static size_t fp_map_all(const tessel_cloud *cloud, const fp_frame *f, float *map, float lo[2],
+                         float hi[2], int nt)
 {
     float l0 = FLT_MAX, l1 = FLT_MAX, h0 = -FLT_MAX, h1 = -FLT_MAX;
     size_t valid = 0;
@@ -1414,8 +1708,15 @@ static size_t fp_bounds(const tessel_cloud *cloud, const fp_frame *f, float lo[2
     reduction(+ : valid) num_threads(nt)
     for (int64_t i = 0; i < (int64_t)cloud->count; i++) {
         float s, t, d;
-        if (!fp_map(f, cloud->xyz + 3 * (size_t)i, &s, &t, &d))
+        float *m = map + 3 * (size_t)i;
+        if (!fp_map(f, cloud->xyz + 3 * (size_t)i, &s, &t, &d)) {
+            m[0] = NAN;
+            m[1] = m[2] = 0.0f;
             continue;
+        }
+        m[0] = s;
+        m[1] = t;
+        m[2] = d;
         valid++;
         l0 = s < l0 ? s : l0;
         h0 = s > h0 ? s : h0;
@@ -1437,41 +1738,44 @@ static tessel_status fp_emit(const fp_ctx *x, const uint8_t *codes,
                              const tessel_triangle_sink *sink, const tessel_callbacks *cb,
                              size_t *count)
 {
-    uint32_t *buf = tsl_alloc_array((size_t)3 * FP_BATCH, sizeof(uint32_t));
+    /* Room for a whole block row: the row loop writes without checks. */
+    size_t cap = (size_t)2 * x->cw > FP_BATCH ? (size_t)2 * x->cw : FP_BATCH;
+    uint32_t *buf = tsl_alloc_array(3 * cap, sizeof(uint32_t));
     if (!buf)
         return TESSEL_ERR_NOMEM;
     size_t n = 0, total = 0;
     tessel_status status = TESSEL_OK;
     const int flip = x->orient < 0;
     for (uint32_t r = 0; r < x->ch && status == TESSEL_OK; r++) {
-        const uint8_t *row = codes + (size_t)r * x->cw;
-        const uint32_t *top = x->idx + (size_t)r * x->w;
-        const uint32_t *bot = x->idx + (size_t)(r + 1 == x->h ? 0 : r + 1) * x->w;
-        for (uint32_t c = 0; c < x->cw; c++) {
-            unsigned code = row[c];
-            if (!(code & (FP_T0 | FP_T1)))
-                continue;
-            uint32_t cn = c + 1 == x->w ? 0 : c + 1;
-            uint32_t v[4] = {top[c], top[cn], bot[c], bot[cn]};
-            unsigned diag = code & 1;
-            for (int t = 0; t < 2; t++) {
-                if (!(code & (t ? FP_T1 : FP_T0)))
-                    continue;
-                const int *k = fp_tri_corners[diag][t];
-                buf[3 * n] = v[k[0]];
-                buf[3 * n + 1] = v[k[flip ? 2 : 1]];
-                buf[3 * n + 2] = v[k[flip ? 1 : 2]];
-                if (++n == FP_BATCH) {
-                    status = sink->emit(sink->user_data, buf, n);
-                    total += n;
-                    n = 0;
-                    if (status != TESSEL_OK)
-                        break;
-                }
-            }
+        if (n + (size_t)2 * x->cw > cap) {
+            status = sink->emit(sink->user_data, buf, n);
+            total += n;
+            n = 0;
             if (status != TESSEL_OK)
                 break;
         }
+        const uint8_t *row = codes + (size_t)r * x->cw;
+        const uint32_t *top = x->idx + (size_t)r * x->w;
+        const uint32_t *bot = x->idx + (size_t)(r + 1 == x->h ? 0 : r + 1) * x->w;
+        uint32_t *o = buf + 3 * n;
+        /* t0 = (A, B, d ? C : D), t1 = (d ? B : A, D, C); flip swaps the
+         * last two corners. Both are written, the pointer advances only
+         * past those that exist. */
+        for (uint32_t c = 0; c < x->cw; c++) {
+            unsigned code = row[c];
+            uint32_t cn = c + 1 == x->w ? 0 : c + 1;
+            uint32_t A = top[c], B = top[cn], C = bot[c], D = bot[cn];
+            uint32_t X = (code & 1) ? C : D, Y = (code & 1) ? B : A;
+            o[0] = A;
+            o[1] = flip ? X : B;
+            o[2] = flip ? B : X;
+            o += 3 * ((code >> 1) & 1u);
+            o[0] = Y;
+            o[1] = flip ? C : D;
+            o[2] = flip ? D : C;
+            o += 3 * ((code >> 2) & 1u);
+        }
+        n = (size_t)(o - buf) / 3;
         if (status == TESSEL_OK && (r & 1023u) == 1023u)
             status = tsl_progress(cb, "triangles", 0.5 + 0.5 * (double)r / x->ch);
     }
@@ -1562,12 +1866,20 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
                     "unorganized: use the height or range mode");
             return TESSEL_ERR_INVALID_ARG;
         }
-        size_t cells;
+        size_t cells, reps = 0;
         if (!tsl_mul_size(cloud->width, cloud->height, &cells))
             return TESSEL_ERR_LIMIT;
-        for (size_t k = 0; k < cells; k++)
-            if (cloud->grid[k] != TESSEL_NONE && cloud->grid[k] >= cloud->count)
-                return TESSEL_ERR_INVALID_ARG;
+        /* Every index must be a point (or TESSEL_NONE): one branch-free pass
+         * that also counts the points. */
+        uint32_t bad = 0;
+        const uint32_t count32 = (uint32_t)cloud->count;
+        for (size_t k = 0; k < cells; k++) {
+            uint32_t g = cloud->grid[k];
+            reps += g != TESSEL_NONE;
+            bad |= (g != TESSEL_NONE) & (g >= count32);
+        }
+        if (bad)
+            return TESSEL_ERR_INVALID_ARG;
         x.kind = FP_RAY;
         x.w = cloud->width;
         x.h = cloud->height;
@@ -1576,9 +1888,6 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
             x.vp[k] = (float)(vp_world[k] - cloud->offset[k]);
         x.wrap_r = fp_detect_wrap(&x, 1);
         x.wrap_c = fp_detect_wrap(&x, 0);
-        size_t reps = 0;
-        for (size_t k = 0; k < cells; k++)
-            reps += cloud->grid[k] != TESSEL_NONE;
         st.representatives = reps;
         memcpy(st.viewpoint, vp_world, sizeof st.viewpoint);
     } else {
@@ -1604,8 +1913,11 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
         status = tsl_progress(callbacks, "dexels", 0.0);
         if (status != TESSEL_OK)
             return status;
+        float *map = tsl_alloc_array(cloud->count, 3 * sizeof(float));
+        if (!map)
+            return TESSEL_ERR_NOMEM;
         float lo[2], hi[2];
-        size_t valid = fp_bounds(cloud, &f, lo, hi, x.threads);
+        size_t valid = fp_map_all(cloud, &f, map, lo, hi, x.threads);
         if (valid == 0) {
             lo[0] = lo[1] = 0.0f;
             hi[0] = hi[1] = 0.0f;
@@ -1614,19 +1926,20 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
          * Decided on the sample's widest empty sector against the cell. */
         int full = 0;
         if (f.kind == FP_RAY) {
-            status = fp_size(cloud, &f, lo, hi, &p, valid, 0, &dx);
-            if (status != TESSEL_OK)
-                return status;
-            if (gap < 2.0 * dx.cell[0] && (double)hi[0] - lo[0] > FP_PI) {
+            status = fp_size(map, cloud->count, f.kind, lo, hi, &p, valid, 0, &dx);
+            if (status == TESSEL_OK && gap < 2.0 * dx.cell[0] && (double)hi[0] - lo[0] > FP_PI) {
                 full = 1;
                 lo[0] = 0.0f;
             }
         }
-        status = fp_size(cloud, &f, lo, hi, &p, valid, full, &dx);
-        if (status != TESSEL_OK)
-            return status;
+        if (status == TESSEL_OK)
+            status = fp_size(map, cloud->count, f.kind, lo, hi, &p, valid, full, &dx);
         dx.wrap_c = full;
-        status = fp_bucket(cloud, &f, lo, &dx, x.threads, callbacks);
+        dx.lo[0] = lo[0];
+        dx.lo[1] = lo[1];
+        if (status == TESSEL_OK)
+            status = fp_bucket(map, cloud->count, &dx, x.threads, callbacks);
+        free(map);
         if (status != TESSEL_OK) {
             free(dx.rep);
             free(dx.filled_slots);
@@ -1686,26 +1999,24 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
         (void)nt;
 #pragma omp parallel num_threads(nt) reduction(+ : missing, open, folded, failed)
         {
-            fp_vrec *rec = tsl_alloc_array((size_t)2 * x.w, sizeof(fp_vrec));
-            uint8_t *fl = tsl_alloc_array((size_t)3 * x.w, 1);
+            fp_scratch sc;
+            tessel_status ss = fp_scratch_alloc(&sc, x.w);
             /* Every thread must meet the worksharing loop. */
 #pragma omp for schedule(dynamic, 1)
             for (int64_t bi = 0; bi < (int64_t)blocks; bi++) {
-                if (!rec || !fl) {
+                if (ss != TESSEL_OK) {
                     failed++;
                     continue;
                 }
                 uint32_t r0 = band + (uint32_t)bi * rows_per;
                 uint32_t r1 = r0 + rows_per > band_end ? band_end : r0 + rows_per;
                 fp_counts cnt = {0, 0, 0};
-                fp_codes_rows(&x, r0, r1, codes, rec, rec + x.w, fl, fl + x.w,
-                              fl + 2 * (size_t)x.w, &cnt);
+                fp_codes_rows(&x, r0, r1, codes, &sc, &cnt);
                 missing += cnt.missing;
                 open += cnt.open;
                 folded += cnt.folded;
             }
-            free(rec);
-            free(fl);
+            free(sc.mem);
         }
         if (failed)
             status = TESSEL_ERR_NOMEM;

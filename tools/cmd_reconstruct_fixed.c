@@ -1,0 +1,334 @@
+/* tessel reconstruct IN OUT --mode height|range|grid: the fixed-plane
+ * reconstruction of Gopi & Krishnan 2002, section 5, for height fields
+ * (terrain, aerial LIDAR), range scans from one centre of projection and
+ * organized grids. The triangles stream into the mesh writer, so memory
+ * stays that of the cloud. See docs/fixed_plane.md. */
+#include "cli.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char fixed_help[] =
+    "usage: tessel reconstruct IN OUT --mode height|range|grid [options]\n\n"
+    "Fixed-plane reconstruction (Gopi & Krishnan 2002, section 5): the points\n"
+    "are bucketed into a 2D array of dexels on a fixed projection plane, one\n"
+    "representative per dexel, and adjacent dexels are joined. Fast, and noise\n"
+    "along the line of sight does not disturb it. Depth discontinuities (a\n"
+    "step, a chair in front of a wall) stay open.\n\n"
+    "Modes:\n"
+    "  height   terrain, aerial LIDAR (LAS): dexels on the plane of least\n"
+    "           variance, or across --axis; triangles face up\n"
+    "  range    a scan from one position (terrestrial laser scanner):\n"
+    "           dexels in (theta, phi) round the viewpoint; triangles face it\n"
+    "  grid     an organized cloud (PCD WIDTH x HEIGHT, PLY 'comment\n"
+    "           organized W H'): its own grid, missing points skipped,\n"
+    "           shorter diagonal of each cell\n\n"
+    "Options:\n"
+    "  --axis x|y|z|auto      height: project along this axis (default auto:\n"
+    "                         the plane of least variance, normal up)\n"
+    "  --grid WxH             height, range: W x H dexels over the data\n"
+    "  --cell SIZE            height: dexel size in world units; range: dexel\n"
+    "                         angle in degrees (default: from the density)\n"
+    "  --points-per-dexel N   target of the automatic cell, >= 1 (default 3)\n"
+    "  --viewpoint X,Y,Z      range, grid: scanner position (default: the\n"
+    "                         file's PCD VIEWPOINT or PLY 'comment viewpoint';\n"
+    "                         grid falls back to the origin)\n"
+    "  --max-angle DEG        steepest edge still joined, from the plane facing\n"
+    "                         the projection direction, 0..90 (default 80)\n"
+    "  --noise SIGMA          noise along the line of sight, world units\n"
+    "                         (default: estimated from the data)\n"
+    "  --noise-factor K       joins reach K*SIGMA beyond the sampling (default 6)\n"
+    "  --ascii                write ascii PLY\n\n";
+
+typedef struct fixed_opts {
+    tessel_fixed_plane_params p;
+    int mode_given;
+    int ascii;
+    double cell_arg;
+} fixed_opts;
+
+static const char *value_of(int argc, char **argv, int *i)
+{
+    if (*i + 1 >= argc) {
+        cli_error("%s needs a value", argv[*i]);
+        return NULL;
+    }
+    return argv[++*i];
+}
+
+/* "W" "x" "H" with positive whole numbers. */
+static bool parse_grid(const char *text, uint32_t *w, uint32_t *h)
+{
+    char *end = NULL;
+    unsigned long a = strtoul(text, &end, 10);
+    if (end == text || (*end != 'x' && *end != 'X'))
+        goto bad;
+    const char *rest = end + 1;
+    unsigned long b = strtoul(rest, &end, 10);
+    if (end == rest || *end != '\0' || a == 0 || b == 0 || a > 1000000 || b > 1000000)
+        goto bad;
+    *w = (uint32_t)a;
+    *h = (uint32_t)b;
+    return true;
+bad:
+    cli_error("--grid expects WxH with whole numbers from 1 to 1000000, got '%s'", text);
+    return false;
+}
+
+static bool parse_triple(const char *opt, const char *text, double out[3])
+{
+    char buf[256];
+    snprintf(buf, sizeof buf, "%s", text);
+    char *save = buf;
+    for (int k = 0; k < 3; k++) {
+        char *tok = save;
+        char *comma = strchr(save, ',');
+        if ((comma == NULL) != (k == 2)) {
+            cli_error("%s expects X,Y,Z, got '%s'", opt, text);
+            return false;
+        }
+        if (comma) {
+            *comma = '\0';
+            save = comma + 1;
+        }
+        if (!cli_parse_double(opt, tok, &out[k]))
+            return false;
+    }
+    return true;
+}
+
+static int fixed_option(void *ctx, int argc, char **argv, int *i)
+{
+    fixed_opts *o = ctx;
+    const char *a = argv[*i], *v;
+    if (strcmp(a, "--mode") == 0) {
+        if (!(v = value_of(argc, argv, i)))
+            return -1;
+        if (strcmp(v, "height") == 0)
+            o->p.mode = TESSEL_FIXED_PLANE_HEIGHT;
+        else if (strcmp(v, "range") == 0)
+            o->p.mode = TESSEL_FIXED_PLANE_RANGE;
+        else if (strcmp(v, "grid") == 0)
+            o->p.mode = TESSEL_FIXED_PLANE_GRID;
+        else {
+            cli_error("--mode expects height, range or grid, got '%s'", v);
+            return -1;
+        }
+        o->mode_given = 1;
+        return 1;
+    }
+    if (strcmp(a, "--axis") == 0) {
+        if (!(v = value_of(argc, argv, i)))
+            return -1;
+        if (strcmp(v, "x") == 0 || strcmp(v, "y") == 0 || strcmp(v, "z") == 0)
+            o->p.axis = v[0] - 'x';
+        else if (strcmp(v, "auto") == 0)
+            o->p.axis = -1;
+        else {
+            cli_error("--axis expects x, y, z or auto, got '%s'", v);
+            return -1;
+        }
+        return 1;
+    }
+    if (strcmp(a, "--grid") == 0) {
+        if (!(v = value_of(argc, argv, i)))
+            return -1;
+        return parse_grid(v, &o->p.columns, &o->p.rows) ? 1 : -1;
+    }
+    if (strcmp(a, "--viewpoint") == 0) {
+        if (!(v = value_of(argc, argv, i)))
+            return -1;
+        if (!parse_triple(a, v, o->p.viewpoint))
+            return -1;
+        o->p.use_viewpoint = 1;
+        return 1;
+    }
+    if (strcmp(a, "--ascii") == 0) {
+        o->ascii = 1;
+        return 1;
+    }
+    static const char *const numeric[] = {"--cell", "--points-per-dexel", "--max-angle",
+                                          "--noise", "--noise-factor"};
+    for (int k = 0; k < 5; k++) {
+        if (strcmp(a, numeric[k]) != 0)
+            continue;
+        double x;
+        if (!(v = value_of(argc, argv, i)) || !cli_parse_double(a, v, &x))
+            return -1;
+        bool ok = true;
+        switch (k) {
+        case 0:
+            ok = x > 0;
+            o->cell_arg = x;
+            break;
+        case 1:
+            ok = x >= 1;
+            o->p.points_per_dexel = x;
+            break;
+        case 2:
+            ok = x > 0 && x < 90;
+            o->p.max_angle = x;
+            break;
+        case 3:
+            ok = x > 0;
+            o->p.noise = x;
+            break;
+        default:
+            ok = x >= 0;
+            o->p.noise_factor = x;
+            break;
+        }
+        if (!ok) {
+            cli_error("%s: %s is out of range (see tessel reconstruct --help)", a, v);
+            return -1;
+        }
+        return 1;
+    }
+    return 0;
+}
+
+static const char *mode_name(tessel_fixed_plane_mode m)
+{
+    return m == TESSEL_FIXED_PLANE_HEIGHT ? "height" : m == TESSEL_FIXED_PLANE_RANGE ? "range"
+                                                                                     : "grid";
+}
+
+int cmd_reconstruct_fixed(int argc, char **argv)
+{
+    cli_common common = {0};
+    fixed_opts o;
+    memset(&o, 0, sizeof o);
+    o.p = tessel_fixed_plane_params_default();
+    const char *in = NULL, *out = NULL;
+    int r = cli_parse_in_out(argc, argv, fixed_help, &common, &in, &out, fixed_option, &o);
+    if (r <= 0)
+        return r == 0 ? CLI_OK : CLI_USAGE;
+    if (!o.mode_given) {
+        cli_error("reconstruct: --mode height|range|grid is needed for the fixed-plane "
+                  "reconstruction");
+        return CLI_USAGE;
+    }
+    if (o.cell_arg > 0)
+        o.p.cell = o.p.mode == TESSEL_FIXED_PLANE_RANGE ? o.cell_arg * 3.14159265358979323846 / 180.0
+                                                        : o.cell_arg;
+    cli_apply_threads(&common);
+    o.p.threads = common.threads;
+
+    double t0 = cli_now();
+    tessel_cloud cloud = {0};
+    tessel_diag diag = {0};
+    tessel_status st = tessel_cloud_read(&cloud, in, NULL, &diag);
+    if (st != TESSEL_OK) {
+        cli_error_status(st, &diag, in);
+        return cli_exit_for_read(st);
+    }
+    double t_read = cli_now() - t0;
+    /* Wrong input for the mode: say so before any work (never an empty
+     * mesh without a word). */
+    if (o.p.mode == TESSEL_FIXED_PLANE_GRID && !cloud.grid) {
+        cli_error("%s: grid mode needs an organized cloud (PCD WIDTH x HEIGHT with HEIGHT > 1, "
+                  "or PLY 'comment organized W H'); this file holds %zu unorganized points: "
+                  "use --mode height or --mode range",
+                  in, cloud.count);
+        tessel_cloud_free(&cloud);
+        return CLI_INPUT_ERROR;
+    }
+    if (o.p.mode == TESSEL_FIXED_PLANE_RANGE && !o.p.use_viewpoint && !cloud.has_viewpoint) {
+        cli_error("%s: range mode needs the scanner position: the file has none (PCD "
+                  "VIEWPOINT or PLY 'comment viewpoint X Y Z'); give --viewpoint X,Y,Z",
+                  in);
+        tessel_cloud_free(&cloud);
+        return CLI_USAGE;
+    }
+
+    tessel_write_params wp = tessel_write_params_default();
+    wp.ascii = o.ascii;
+    tessel_mesh_writer *writer = NULL;
+    st = tessel_mesh_writer_open(&writer, out, &cloud, &wp, 1, &diag);
+    if (st != TESSEL_OK) {
+        cli_error_status(st, &diag, out);
+        tessel_cloud_free(&cloud);
+        return cli_exit_for_write(st);
+    }
+    tessel_triangle_sink sink = tessel_mesh_writer_sink(writer);
+    cli_progress prog;
+    cli_progress_init(&prog, &common);
+    tessel_callbacks cb = cli_callbacks(&prog);
+    cli_progress_items(&prog, cloud.count);
+    tessel_fixed_plane_stats fs;
+    st = tessel_reconstruct_fixed_plane(&cloud, &o.p, &cb, &sink, &fs);
+    cli_progress_done(&prog);
+    if (st != TESSEL_OK) {
+        tessel_mesh_writer_abort(writer);
+        tessel_cloud_free(&cloud);
+        if (st == TESSEL_ERR_IO) {
+            cli_error("%s: writing the triangles failed", out);
+            return CLI_OUTPUT_ERROR;
+        }
+        cli_error("%s: fixed-plane reconstruction failed: %s", in, tessel_status_str(st));
+        return CLI_FAILURE;
+    }
+    double t1 = cli_now();
+    st = tessel_mesh_writer_close(writer, &diag);
+    double t_write = cli_now() - t1;
+    size_t n = cloud.count;
+    int offset = cloud.offset[0] != 0 || cloud.offset[1] != 0 || cloud.offset[2] != 0;
+    tessel_cloud_free(&cloud);
+    if (st != TESSEL_OK) {
+        cli_error_status(st, &diag, out);
+        return cli_exit_for_write(st);
+    }
+    double seconds = cli_now() - t0;
+    const double deg = 180.0 / 3.14159265358979323846;
+    double cu = fs.mode == TESSEL_FIXED_PLANE_RANGE ? fs.cell[0] * deg : fs.cell[0];
+    double cv = fs.mode == TESSEL_FIXED_PLANE_RANGE ? fs.cell[1] * deg : fs.cell[1];
+    if (common.json) {
+        printf("{\"mode\": \"%s\", \"points\": %zu, \"representatives\": %zu, "
+               "\"dexels_filled\": %zu, \"columns\": %u, \"rows\": %u, \"cell\": [%.9g, %.9g], "
+               "\"wrap_columns\": %d, \"wrap_rows\": %d, \"axis\": [%.9g, %.9g, %.9g], "
+               "\"viewpoint\": [%.17g, %.17g, %.17g], \"noise\": %.9g, "
+               "\"noise_estimated\": %d, \"margin\": %.9g, \"max_angle\": %g, "
+               "\"cells\": %zu, \"cells_missing\": %zu, \"cells_open\": %zu, "
+               "\"triangles_folded\": %zu, \"triangles_nonmanifold\": %zu, "
+               "\"triangles\": %zu, \"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
+               "\"dexel_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f}\n",
+               mode_name(fs.mode), n, fs.representatives, fs.dexels_filled, fs.columns, fs.rows,
+               cu, cv, fs.wrap_columns, fs.wrap_rows, fs.axis[0], fs.axis[1], fs.axis[2],
+               fs.viewpoint[0], fs.viewpoint[1], fs.viewpoint[2], fs.noise, fs.noise_estimated,
+               fs.margin, o.p.max_angle, fs.cells, fs.cells_missing, fs.cells_open,
+               fs.triangles_folded, fs.triangles_nonmanifold, fs.triangles, t_read, fs.seconds,
+               fs.seconds_dexels, t_write, seconds);
+    } else if (!common.quiet) {
+        fprintf(stderr, "tessel: %s mode: %zu points, %u x %u %s", mode_name(fs.mode), n,
+                fs.columns, fs.rows, fs.mode == TESSEL_FIXED_PLANE_GRID ? "grid" : "dexels");
+        if (fs.mode == TESSEL_FIXED_PLANE_HEIGHT)
+            fprintf(stderr, " of %.4g x %.4g, normal (%.3f, %.3f, %.3f)", cu, cv, fs.axis[0],
+                    fs.axis[1], fs.axis[2]);
+        else if (fs.mode == TESSEL_FIXED_PLANE_RANGE)
+            fprintf(stderr, " of %.4g x %.4g degrees, pole (%.0f, %.0f, %.0f)", cu, cv,
+                    fs.axis[0], fs.axis[1], fs.axis[2]);
+        if (fs.mode != TESSEL_FIXED_PLANE_HEIGHT)
+            fprintf(stderr, ", viewpoint %.6g %.6g %.6g", fs.viewpoint[0], fs.viewpoint[1],
+                    fs.viewpoint[2]);
+        if (fs.wrap_columns || fs.wrap_rows)
+            fprintf(stderr, ", 360-degree %s", fs.wrap_columns ? "columns" : "rows");
+        fprintf(stderr, "%s\n", offset ? ", georeferenced offset kept" : "");
+        fprintf(stderr,
+                "tessel: %zu representatives (%zu one-dexel gaps filled); noise %.4g (%s), "
+                "edges reach %.4g beyond the sampling up to %g degrees\n",
+                fs.representatives, fs.dexels_filled, fs.noise,
+                fs.noise_estimated ? "estimated" : "given", fs.margin, o.p.max_angle);
+        fprintf(stderr,
+                "tessel: %zu triangles; of %zu cells %zu lack points, %zu are cut by a "
+                "discontinuity; %zu triangles folded, %zu removed to keep vertices manifold\n",
+                fs.triangles, fs.cells, fs.cells_missing, fs.cells_open, fs.triangles_folded,
+                fs.triangles_nonmanifold);
+        fprintf(stderr,
+                "tessel: wrote %s in %.2f s (read %.2f s, reconstruction %.3f s = %.2fM "
+                "points/s, write %.2f s)\n",
+                out, seconds, t_read, fs.seconds,
+                fs.seconds > 0 ? (double)n / fs.seconds / 1e6 : 0.0, t_write);
+    }
+    return CLI_OK;
+}
