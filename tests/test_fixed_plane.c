@@ -8,10 +8,17 @@
 #include "test.h"
 #include "tessel.h"
 
+/* The CLI entry and its helpers, compiled in: the test calls it as tessel
+ * reconstruct would. */
+#include "../tools/cli.c"
+#include "../tools/cmd_reconstruct_fixed.c"
+
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #define PI 3.14159265358979323846
 
@@ -1019,6 +1026,122 @@ static void test_errors(void)
     tessel_cloud_free(&e);
 }
 
+/* ---- the CLI entry, called as tessel reconstruct would ---- */
+
+static int run_cli(int n, const char *const *args)
+{
+    char *argv[16];
+    for (int i = 0; i < n; i++)
+        argv[i] = (char *)args[i];
+    argv[n] = NULL;
+    return cmd_reconstruct_fixed(n, argv);
+}
+
+static void test_cli(void)
+{
+    char dir[] = "/tmp/tessel_fp_XXXXXX";
+    if (!mkdtemp(dir)) {
+        CHECK(0);
+        return;
+    }
+    char grid_in[64], terrain_in[64], out[64], out2[64];
+    snprintf(grid_in, sizeof grid_in, "%s/grid.ply", dir);
+    snprintf(terrain_in, sizeof terrain_in, "%s/terrain.ply", dir);
+    snprintf(out, sizeof out, "%s/out.ply", dir);
+    snprintf(out2, sizeof out2, "%s/out2.ply", dir);
+
+    /* an organized scan with its viewpoint, through a PLY file */
+    tessel_cloud c;
+    uint8_t *labels;
+    scan_room(&c, &labels, 60, 120, 0.004, 1, 0.0, 11);
+    CHECK(tessel_cloud_write(&c, grid_in, NULL, NULL) == TESSEL_OK);
+    const char *a1[] = {"reconstruct", grid_in, out, "--mode", "grid", "--quiet"};
+    CHECK(run_cli(6, a1) == 0);
+    tessel_mesh m;
+    CHECK(tessel_mesh_read(&m, out, NULL, NULL) == TESSEL_OK);
+    tris direct;
+    tessel_fixed_plane_params p = tessel_fixed_plane_params_default();
+    p.mode = TESSEL_FIXED_PLANE_GRID;
+    CHECK(run(&c, &p, &direct, NULL) == TESSEL_OK);
+    CHECK_MSG(m.triangle_count == direct.n && m.triangle_count > 0, "%zu vs %zu",
+              m.triangle_count, direct.n);
+    tessel_check_params cp = tessel_check_params_default();
+    tessel_mesh_report rep;
+    CHECK(tessel_mesh_check(&m, &cp, &rep) == TESSEL_OK && tessel_mesh_report_valid(&rep));
+    tessel_mesh_free(&m);
+    free(direct.t);
+    /* range mode reads the viewpoint from the file, or needs --viewpoint */
+    const char *a2[] = {"reconstruct", grid_in, out2, "--mode", "range", "--quiet"};
+    CHECK(run_cli(6, a2) == 0);
+    free(labels);
+    tessel_cloud_free(&c);
+
+    /* a georeferenced terrain: world coordinates come back exactly */
+    make_terrain(&c, 4000, h_parab, 0.001, 12);
+    c.offset[0] = 500000.0;
+    c.offset[1] = 4100000.0;
+    c.offset[2] = 35.0;
+    CHECK(tessel_cloud_write(&c, terrain_in, NULL, NULL) == TESSEL_OK);
+    tessel_cloud back;
+    CHECK(tessel_cloud_read(&back, terrain_in, NULL, NULL) == TESSEL_OK);
+    const char *a3[] = {"reconstruct", terrain_in, out, "--mode", "height", "--axis", "z",
+                        "--cell", "0.03", "--quiet"};
+    CHECK(run_cli(10, a3) == 0);
+    CHECK(tessel_mesh_read(&m, out, NULL, NULL) == TESSEL_OK);
+    CHECK(m.triangle_count > 1000);
+    size_t exact = 0;
+    for (size_t v = 0; v < m.vertex_count; v++) {
+        double wv[3];
+        for (int k = 0; k < 3; k++)
+            wv[k] = m.offset[k] + (double)m.xyz[3 * v + k];
+        for (size_t i = 0; i < back.count; i++) {
+            if (back.offset[0] + (double)back.xyz[3 * i] == wv[0] &&
+                back.offset[1] + (double)back.xyz[3 * i + 1] == wv[1] &&
+                back.offset[2] + (double)back.xyz[3 * i + 2] == wv[2]) {
+                exact++;
+                break;
+            }
+        }
+    }
+    CHECK_MSG(exact == m.vertex_count, "%zu of %zu vertices are input points", exact,
+              m.vertex_count);
+    CHECK(fabs(m.offset[0] + m.xyz[0] - 500000.0) < 2.0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&back);
+
+    /* wrong input or options: clear errors, no output written */
+    remove(out2);
+    const char *a4[] = {"reconstruct", terrain_in, out2, "--mode", "grid", "--quiet"};
+    CHECK(run_cli(6, a4) == 2); /* unorganized */
+    const char *a5[] = {"reconstruct", terrain_in, out2, "--mode", "range", "--quiet"};
+    CHECK(run_cli(6, a5) == 1); /* no viewpoint */
+    const char *a6[] = {"reconstruct", terrain_in, out2, "--mode", "sideways"};
+    CHECK(run_cli(5, a6) == 1);
+    const char *a7[] = {"reconstruct", terrain_in, out2, "--mode", "height", "--grid", "0x5"};
+    CHECK(run_cli(7, a7) == 1);
+    const char *a8[] = {"reconstruct", terrain_in, out2, "--mode", "height", "--max-angle",
+                        "95"};
+    CHECK(run_cli(7, a8) == 1);
+    const char *a9[] = {"reconstruct", terrain_in, out2, "--mode", "range", "--viewpoint",
+                        "1,2", "--quiet"};
+    CHECK(run_cli(8, a9) == 1);
+    const char *a10[] = {"reconstruct", "/nonexistent/in.ply", out2, "--mode", "height"};
+    CHECK(run_cli(5, a10) == 2);
+    FILE *f = fopen(out2, "rb");
+    CHECK(f == NULL);
+    if (f)
+        fclose(f);
+    const char *a11[] = {"reconstruct", terrain_in, out2, "--mode", "range", "--viewpoint",
+                         "500000.5,4100000.5,36", "--json"};
+    CHECK(run_cli(8, a11) == 0);
+    tessel_cloud_free(&c);
+    remove(grid_in);
+    remove(terrain_in);
+    remove(out);
+    remove(out2);
+    rmdir(dir);
+}
+
 int main(void)
 {
     test_plane();
@@ -1032,5 +1155,6 @@ int main(void)
     test_vertex_manifold();
     test_offset();
     test_errors();
+    test_cli();
     return TEST_SUMMARY();
 }
