@@ -846,7 +846,9 @@ typedef struct tessel_smooth_stats {
  * the smallest-eigenvalue direction of their neighbours' unweighted
  * covariance. Colours, offset, viewpoint and grid are copied. params and
  * stats may be NULL. Needs at least 3 points and a non-zero spacing
- * (TESSEL_ERR_TOO_FEW_POINTS). On error *out is zeroed. */
+ * (TESSEL_ERR_TOO_FEW_POINTS) and finite coordinates (else
+ * TESSEL_ERR_INVALID_ARG, also from the projector and clustering). On
+ * error *out is zeroed. */
 TESSEL_API tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
                                        const tessel_smooth_params *params,
                                        const tessel_callbacks *callbacks,

@@ -200,6 +200,9 @@ tessel_status tessel_cluster(const tessel_cloud *cloud, const tessel_cluster_par
         return TESSEL_ERR_TOO_FEW_POINTS;
     if (n >= (size_t)TESSEL_NONE)
         return TESSEL_ERR_LIMIT;
+    for (size_t i = 0; i < 3 * n; i++)
+        if (!isfinite(cloud->xyz[i]))
+            return TESSEL_ERR_INVALID_ARG;
 
     /* The spacing is only needed to scale max_diameter. */
     double h = p.spacing;

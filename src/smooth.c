@@ -339,6 +339,10 @@ static tessel_status check_cloud(const tessel_cloud *cloud)
         return TESSEL_ERR_TOO_FEW_POINTS;
     if (cloud->count >= (size_t)TESSEL_NONE)
         return TESSEL_ERR_LIMIT;
+    /* Readers drop non-finite points; a caller's array might not have. */
+    for (size_t i = 0; i < 3 * cloud->count; i++)
+        if (!isfinite(cloud->xyz[i]))
+            return TESSEL_ERR_INVALID_ARG;
     return TESSEL_OK;
 }
 

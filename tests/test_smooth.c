@@ -534,6 +534,13 @@ static void test_args(void)
     CHECK(tessel_smooth(&c, NULL, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
     tessel_projector *pr = (tessel_projector *)&c;
     CHECK(tessel_projector_create(&pr, &c, &bad[0]) == TESSEL_ERR_INVALID_ARG && pr == NULL);
+    /* Non-finite coordinates are refused, not smoothed into garbage. */
+    c.xyz[7] = NAN;
+    CHECK(tessel_smooth(&c, &out, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tessel_projector_create(&pr, &c, NULL) == TESSEL_ERR_INVALID_ARG && pr == NULL);
+    c.xyz[7] = INFINITY;
+    tessel_clusters cl;
+    CHECK(tessel_cluster(&c, NULL, NULL, &cl) == TESSEL_ERR_INVALID_ARG && cl.labels == NULL);
     tessel_cloud_free(&c);
 }
 
