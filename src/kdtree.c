@@ -681,3 +681,9 @@ tessel_status tessel_index_knn_batch(const tessel_index *index, const float *que
     }
     return TESSEL_OK;
 }
+
+void tsl_index_order(const tessel_index *index, uint32_t *order)
+{
+    for (size_t i = 0; i < index->count; i++)
+        order[i] = index->pts[i].id;
+}

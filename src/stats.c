@@ -273,26 +273,32 @@ static tessel_status outliers_of(const distinct_set *d, uint32_t k, double facto
         return TESSEL_OK;
     float *mean = tsl_alloc_array(d->count, sizeof *mean);
     float *sorted = tsl_alloc_array(d->count, sizeof *sorted);
-    if (!mean || !sorted) {
+    uint32_t *order = tsl_alloc_array(d->count, sizeof *order);
+    if (!mean || !sorted || !order) {
         free(mean);
         free(sorted);
+        free(order);
         return TESSEL_ERR_NOMEM;
     }
+    /* Queries in the index's storage order run faster (warm caches). */
+    tsl_index_order(d->index, order);
     ptrdiff_t n = (ptrdiff_t)d->count;
     int nthreads = tsl_threads(threads);
     (void)nthreads;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(nthreads)
 #endif
-    for (ptrdiff_t i = 0; i < n; i++) {
+    for (ptrdiff_t t = 0; t < n; t++) {
+        size_t i = order[t];
         uint32_t idx[OUTLIER_K_MAX + 1];
         float d2[OUTLIER_K_MAX + 1];
-        size_t got = tessel_index_knn(d->index, d->xyz + 3 * (size_t)i, k + 1, idx, d2);
+        size_t got = tessel_index_knn(d->index, d->xyz + 3 * i, k + 1, idx, d2);
         double sum = 0.0;
         for (size_t j = 1; j < got; j++) /* entry 0 is the point itself */
             sum += sqrt((double)d2[j]);
         mean[i] = (float)(sum / (double)(got - 1));
     }
+    free(order);
     memcpy(sorted, mean, d->count * sizeof *mean);
     double limit = factor * median_float(sorted, d->count);
     size_t count = 0;
