@@ -366,6 +366,12 @@ TESSEL_API tessel_normals_params tessel_normals_params_default(void);
 TESSEL_API tessel_status tessel_normals_estimate(tessel_cloud *cloud,
                                                  const tessel_normals_params *params,
                                                  const tessel_callbacks *callbacks);
+/* Orientation details (src/normals.c): each component of the k-NN graph is
+ * seeded at its highest point with n.z > 0; a cloud with a viewpoint (one
+ * scan, has_viewpoint) instead has every normal turned towards the
+ * viewpoint. On failure or cancellation cloud->normals is left as it was.
+ * Non-finite coordinates give TESSEL_ERR_INVALID_ARG, fewer than 3 points
+ * TESSEL_ERR_TOO_FEW_POINTS. Progress stage: "normals". */
 
 /* ------------------------------------------------------------------------ */
 /* Mesh check (src/check.c)                                                  */
