@@ -91,8 +91,18 @@ typedef struct gp_cone {
     int convex;       /* the free sector is under 180 degrees */
     uint32_t R, e, s;
     double e2[2], s2[2], bis[2];
+    double eu[2], su[2];  /* unit directions of e2, s2 */
     double eps;       /* margin for the rounding of projections */
 } gp_cone;
+
+/* Projections of points on the current reference point's plane, cached by
+ * point index (direct-mapped; valid while stamp matches). */
+#define PCACHE 1024
+typedef struct gp_pcache {
+    uint32_t idx, stamp;
+    double x, y;
+    unsigned flags;       /* CONE_* tests the point passes */
+} gp_pcache;
 
 typedef struct gp {
     /* input and parameters */
@@ -175,6 +185,7 @@ typedef struct gp {
     size_t gt_count, gt_cap;
     uint32_t stamp;
     gp_cone cone;         /* of the current reference point */
+    gp_pcache *pc;        /* PCACHE entries */
 
     tessel_recon_summary sum;
     size_t processed;
@@ -1285,56 +1296,74 @@ static void visibility(gp *g, uint32_t R, const gp_frame *f, uint32_t end_a, uin
     }
 }
 
-static inline double cone_dist(const gp_cone *c, const double q[2])
+/* Squared distance from q to the free cone (0 inside). */
+static inline double cone_dist2(const gp_cone *c, const double q[2])
 {
-    /* Distance from q to the free cone (0 inside). */
     double ce = cross2(c->e2[0], c->e2[1], q[0], q[1]);
     double cs = cross2(q[0], q[1], c->s2[0], c->s2[1]);
     int inside = c->convex ? (ce >= 0.0 && cs >= 0.0) : (ce >= 0.0 || cs >= 0.0);
     if (inside)
         return 0.0;
-    double best = INFINITY;
+    double best = q[0] * q[0] + q[1] * q[1];
     for (int k = 0; k < 2; k++) {
-        const double *d = k ? c->s2 : c->e2;
-        double dl = sqrt(d[0] * d[0] + d[1] * d[1]);
-        double t = (q[0] * d[0] + q[1] * d[1]) / dl;
-        double dist = t <= 0.0 ? sqrt(q[0] * q[0] + q[1] * q[1])
-                               : fabs(cross2(d[0], d[1], q[0], q[1])) / dl;
-        if (dist < best)
-            best = dist;
+        const double *d = k ? c->su : c->eu;
+        if (q[0] * d[0] + q[1] * d[1] > 0.0) {
+            double x = cross2(d[0], d[1], q[0], q[1]);
+            if (x * x < best)
+                best = x * x;
+        }
     }
     return best;
 }
 
-/* Triangle T (projected vertices q[k], ids v[k]) provably meets the free
- * cone at most in R, e or s. */
-static int cone_certifies(const gp_cone *c, const uint32_t v[3], double q[3][2])
+/* Per-point tests behind the certificate. A triangle stays out of the free
+ * cone (except for R, e, s themselves) when its three vertices pass a
+ * common test:
+ *  - free sector over 180 degrees (mesh sector convex): the vertex is
+ *    strictly inside the mesh sector (or is R, e or s);
+ *  - free sector under 180 degrees: all three strictly beyond the line
+ *    through R and e (e and R allowed on it), or beyond the line through R
+ *    and s, or behind R across the bisector (R allowed). */
+enum { CONE_IN_MESH = 1, CONE_SIDE_E = 2, CONE_SIDE_S = 4, CONE_BEHIND = 8 };
+
+static unsigned cone_flags(const gp_cone *c, uint32_t v, const double q[2])
 {
+    if (v == c->R)
+        return CONE_IN_MESH | CONE_SIDE_E | CONE_SIDE_S | CONE_BEHIND;
+    unsigned f = 0;
+    double ce = cross2(c->e2[0], c->e2[1], q[0], q[1]);
+    double cs = cross2(q[0], q[1], c->s2[0], c->s2[1]);
     if (!c->convex) {
-        /* The mesh sector is convex: every vertex in its interior (or R, e,
-         * s on its boundary) keeps the whole triangle in it. */
-        for (int k = 0; k < 3; k++) {
-            if (v[k] == c->R || v[k] == c->e || v[k] == c->s)
-                continue;
-            if (!(cross2(c->s2[0], c->s2[1], q[k][0], q[k][1]) > c->eps &&
-                  cross2(q[k][0], q[k][1], c->e2[0], c->e2[1]) > c->eps))
-                return 0;
-        }
-        return 1;
+        if (v == c->e || v == c->s || (-cs > c->eps && -ce > c->eps))
+            f |= CONE_IN_MESH;
+        return f;
     }
-    /* The free sector is convex: separated by the line through e, the line
-     * through s, or the line through R across the bisector. */
-    int side_e = 1, side_s = 1, behind = 1;
-    for (int k = 0; k < 3; k++) {
-        int is_r = v[k] == c->R;
-        if (!is_r && v[k] != c->e && !(cross2(c->e2[0], c->e2[1], q[k][0], q[k][1]) < -c->eps))
-            side_e = 0;
-        if (!is_r && v[k] != c->s && !(cross2(q[k][0], q[k][1], c->s2[0], c->s2[1]) < -c->eps))
-            side_s = 0;
-        if (!is_r && !(q[k][0] * c->bis[0] + q[k][1] * c->bis[1] < -c->eps))
-            behind = 0;
+    if (v == c->e || ce < -c->eps)
+        f |= CONE_SIDE_E;
+    if (v == c->s || cs < -c->eps)
+        f |= CONE_SIDE_S;
+    if (q[0] * c->bis[0] + q[1] * c->bis[1] < -c->eps)
+        f |= CONE_BEHIND;
+    return f;
+}
+
+/* R's projection of point i and its cone flags, through the cache. */
+static inline unsigned project_cached(gp *g, uint32_t R, const gp_frame *f, uint32_t i,
+                                      double xy[2])
+{
+    gp_pcache *c = &g->pc[i & (PCACHE - 1)];
+    if (c->idx != i || c->stamp != g->stamp) {
+        double q[2];
+        project_point(g, R, f, i, q);
+        c->idx = i;
+        c->stamp = g->stamp;
+        c->x = q[0];
+        c->y = q[1];
+        c->flags = g->cone.on ? cone_flags(&g->cone, i, q) : 0;
     }
-    return side_e || side_s || behind;
+    xy[0] = c->x;
+    xy[1] = c->y;
+    return c->flags;
 }
 
 static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp_frame *f)
@@ -1342,10 +1371,11 @@ static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp
     g->tstamp[t] = g->stamp;
     const gp_tri *T = &g->tri[t];
     if (cone->on) {
-        double q[3][2];
-        for (int k = 0; k < 3; k++)
-            project_point(g, cone->R, f, T->v[k], q[k]);
-        if (cone_certifies(cone, T->v, q))
+        double q[2];
+        unsigned fl = project_cached(g, cone->R, f, T->v[0], q);
+        fl &= project_cached(g, cone->R, f, T->v[1], q);
+        fl &= project_cached(g, cone->R, f, T->v[2], q);
+        if (fl)
             return TESSEL_OK;
     }
     if (grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
@@ -1385,8 +1415,12 @@ static tessel_status guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
         cone.convex = cross2(cone.e2[0], cone.e2[1], cone.s2[0], cone.s2[1]) > 0.0;
         double le_ = sqrt(cone.e2[0] * cone.e2[0] + cone.e2[1] * cone.e2[1]);
         double ls_ = sqrt(cone.s2[0] * cone.s2[0] + cone.s2[1] * cone.s2[1]);
-        cone.bis[0] = cone.e2[0] / le_ + cone.s2[0] / ls_;
-        cone.bis[1] = cone.e2[1] / le_ + cone.s2[1] / ls_;
+        cone.eu[0] = cone.e2[0] / le_;
+        cone.eu[1] = cone.e2[1] / le_;
+        cone.su[0] = cone.s2[0] / ls_;
+        cone.su[1] = cone.s2[1] / ls_;
+        cone.bis[0] = cone.eu[0] + cone.su[0];
+        cone.bis[1] = cone.eu[1] + cone.su[1];
         double span = 2.0 * half + g->ell;
         cone.eps = 1e-9 * span * span;
     }
@@ -1399,7 +1433,14 @@ static tessel_status guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
             continue;
         if (cone.on) {
             double q[2] = {tsl_dot(b->rel, f->u), tsl_dot(b->rel, f->v)};
-            if (cone_dist(&cone, q) > (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * half)
+            gp_pcache *pc = &g->pc[v & (PCACHE - 1)];
+            pc->idx = v;
+            pc->stamp = g->stamp;
+            pc->x = q[0];
+            pc->y = q[1];
+            pc->flags = cone_flags(&cone, v, q);
+            double reach_v = (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * half;
+            if (cone_dist2(&cone, q) > reach_v * reach_v)
                 continue;
         }
         for (uint32_t t = g->head[v]; t != NONE;) {
@@ -2053,6 +2094,7 @@ static void gp_free(gp *g)
     free(g->cand);
     free(g->seq);
     free(g->gt);
+    free(g->pc);
 }
 
 static inline uint32_t depth_key(float f)
@@ -2230,8 +2272,9 @@ static tessel_status gp_init(gp *g)
     g->queue = tsl_alloc_array(n, sizeof *g->queue);
     g->seed_order = tsl_alloc_array(n, sizeof *g->seed_order);
     g->out = tsl_alloc_array(OUT_BATCH, 3 * sizeof *g->out);
+    g->pc = tsl_calloc_array(PCACHE, sizeof *g->pc);
     if (!g->xyz || !g->orig || !g->state || !g->head || !g->ls || !g->le || !g->label ||
-        !g->queue || !g->seed_order || !g->out || !g->maxe)
+        !g->queue || !g->seed_order || !g->out || !g->maxe || !g->pc)
         return TESSEL_ERR_NOMEM;
     memset(g->head, 0xff, n * sizeof *g->head);
     memset(g->ls, 0xff, n * sizeof *g->ls);
@@ -2423,7 +2466,7 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
         g.sum.seconds = now_seconds() - t0;
         if (summary)
             *summary = g.sum;
-        tsl_log(callbacks, TESSEL_LOG_INFO,
+        tsl_log(callbacks, TESSEL_LOG_DEBUG,
                 "greedy: %zu of %zu points used, %zu triangles, %zu components, "
                 "%zu boundary edges, spacing %g",
                 g.sum.points_used, g.sum.points_in, g.sum.triangles, g.sum.components,
