@@ -56,11 +56,14 @@ typedef struct tri_grid {
     const tessel_mesh *m;
     double lo[3], cell;
     long dim[3];
-    size_t *start;     /* cells + 1 */
-    uint32_t *tri;     /* triangle ids by cell */
+    size_t *start; /* cells + 1 */
+    uint32_t *tri; /* triangle ids by cell */
 } tri_grid;
 
-static long clampl(long v, long a, long b) { return v < a ? a : (v > b ? b : v); }
+static long clampl(long v, long a, long b)
+{
+    return v < a ? a : (v > b ? b : v);
+}
 
 static void tri_box(const tri_grid *g, uint32_t t, long lo[3], long hi[3])
 {
@@ -135,7 +138,10 @@ static void tri_grid_free(tri_grid *g)
     free(g->tri);
 }
 
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static double dot3(const double *a, const double *b)
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 
 /* Squared distance from p to triangle abc. */
 static double point_triangle_d2(const double p[3], const double a[3], const double b[3],
@@ -309,8 +315,9 @@ static void bench_speed(size_t n)
     /* Noise of about a third of the spacing of n points on the sphere. */
     double noise = 0.3 * sqrt(4 * 3.141592653589793 / (double)n);
     noisy_sphere(&c, n, noise);
-    printf("## Throughput: noisy unit sphere, %zu points (uniform random, radial noise %.5f)\n\n",
-           n, noise);
+    printf(
+        "## Throughput: noisy unit sphere, %zu points (uniform random, radial noise %.5f)\n\n",
+        n, noise);
     double t0 = now(), c0 = cpu_now(), h;
     if (tessel_cloud_spacing(&c, &h) != TESSEL_OK)
         return;
@@ -327,7 +334,8 @@ static void bench_speed(size_t n)
         if (tessel_smooth(&c, &out, &p, NULL, &st) != TESSEL_OK)
             return;
         double w = now() - t0, cpu = cpu_now() - c0;
-        printf("| smooth (k=%u, %u passes) | %d | %.3f | %.3f | %.0f | %.0f point-passes/s; %.2f IRLS "
+        printf("| smooth (k=%u, %u passes) | %d | %.3f | %.3f | %.0f | %.0f point-passes/s; "
+               "%.2f IRLS "
                "iterations, %zu unfit |\n",
                p.k, p.passes, th, w, cpu, n / w, n * (double)p.passes / w, st.mean_iterations,
                st.unfit);
@@ -346,8 +354,8 @@ static void bench_speed(size_t n)
         double w2 = now() - t0, cpu2 = cpu_now() - c0;
         printf("| cluster | %d | %.3f | %.3f | %.0f | %zu clusters |\n", th, w1, cpu1, n / w1,
                cl.count);
-        printf("| representatives | %d | %.3f | %.3f | %.0f | %zu points (%.1fx fewer) |\n", th, w2,
-               cpu2, n / w2, reps.count, (double)n / reps.count);
+        printf("| representatives | %d | %.3f | %.3f | %.0f | %zu points (%.1fx fewer) |\n", th,
+               w2, cpu2, n / w2, reps.count, (double)n / reps.count);
         tessel_clusters_free(&cl);
         tessel_cloud_free(&reps);
         tessel_cloud_free(&out);
@@ -364,8 +372,9 @@ static void bench_data(const char *dir, uint32_t passes)
     printf("## Accuracy: DIR/NAME.pd.n05.ply against NAME.gt.ply\n\n");
     printf("RMS / max: distance to the true surface in %% of its bounding-box diagonal; "
            "median gain: ratio of the median distances. Times are wall seconds.\n\n");
-    printf("| data | points | h/diag %% | noisy RMS / max | smoothed RMS / max (passes) | gain | "
-           "median gain | time | reps | reps RMS / max | time |\n");
+    printf(
+        "| data | points | h/diag %% | noisy RMS / max | smoothed RMS / max (passes) | gain | "
+        "median gain | time | reps | reps RMS / max | time |\n");
     printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (size_t f = 0; f < sizeof names / sizeof *names; f++) {
         char path[1024];
@@ -385,14 +394,16 @@ static void bench_data(const char *dir, uint32_t passes)
         tri_grid g;
         if (tri_grid_build(&g, &gt) != 0)
             return;
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        double lo[3] = {INFINITY, INFINITY, INFINITY},
+               hi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (size_t i = 0; i < gt.vertex_count; i++)
             for (int a = 0; a < 3; a++) {
                 lo[a] = fmin(lo[a], gt.xyz[3 * i + a]);
                 hi[a] = fmax(hi[a], gt.xyz[3 * i + a]);
             }
-        double diag = sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                           (hi[2] - lo[2]) * (hi[2] - lo[2]));
+        double diag =
+            sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                 (hi[2] - lo[2]) * (hi[2] - lo[2]));
         double r0, m0, r1, m1, r2, m2, h, md0, md1;
         cloud_distance3(&g, &c, &r0, &m0, &md0);
         tessel_cloud_spacing(&c, &h);
@@ -409,20 +420,22 @@ static void bench_data(const char *dir, uint32_t passes)
             return;
         double tr = now() - t0;
         cloud_distance(&g, &r, &r2, &m2);
-        printf("| %s | %zu | %.3f | %.3f / %.3f | %.3f / %.3f (%u) | %.2fx | %.2fx | %.3f | %zu | "
-               "%.3f / %.3f | %.3f |\n",
-               names[f], c.count, 100 * h / diag, 100 * r0 / diag, 100 * m0 / diag,
-               100 * r1 / diag, 100 * m1 / diag, passes, r0 / r1, md0 / md1, ts, r.count,
-               100 * r2 / diag, 100 * m2 / diag, tr);
+        printf(
+            "| %s | %zu | %.3f | %.3f / %.3f | %.3f / %.3f (%u) | %.2fx | %.2fx | %.3f | %zu | "
+            "%.3f / %.3f | %.3f |\n",
+            names[f], c.count, 100 * h / diag, 100 * r0 / diag, 100 * m0 / diag,
+            100 * r1 / diag, 100 * m1 / diag, passes, r0 / r1, md0 / md1, ts, r.count,
+            100 * r2 / diag, 100 * m2 / diag, tr);
 
         /* Sensitivity: 1-3 passes and sigma_rho. */
         if (f == 0) {
             printf("\n%s, smoothing parameters (RMS %% of diagonal):\n\n", names[f]);
-            printf("| sigma_rho | sigma_w | k | passes | RMS | gain |\n|---|---|---|---|---|---|\n");
+            printf("| sigma_rho | sigma_w | k | passes | RMS | gain "
+                   "|\n|---|---|---|---|---|---|\n");
             static const double grid[][4] = {
-                {1.5, 2, 24, 1},   {2, 2.5, 24, 1}, {2.5, 2.5, 32, 1}, {1.5, 3, 48, 1},
-                {1, 2.5, 24, 2},   {2, 2.5, 24, 2}, {2.5, 2.5, 24, 2}, {2, 2, 24, 2},
-                {2, 3, 24, 2},     {2, 2.5, 32, 2}, {2, 2.5, 24, 3}, {2.5, 1.5, 24, 2}};
+                {1.5, 2, 24, 1}, {2, 2.5, 24, 1}, {2.5, 2.5, 32, 1}, {1.5, 3, 48, 1},
+                {1, 2.5, 24, 2}, {2, 2.5, 24, 2}, {2.5, 2.5, 24, 2}, {2, 2, 24, 2},
+                {2, 3, 24, 2},   {2, 2.5, 32, 2}, {2, 2.5, 24, 3},   {2.5, 1.5, 24, 2}};
             for (size_t i = 0; i < sizeof grid / sizeof *grid; i++) {
                 tessel_cloud s2;
                 tessel_smooth_params q = tessel_smooth_params_default();
@@ -432,17 +445,17 @@ static void bench_data(const char *dir, uint32_t passes)
                     return;
                 double rr, mm;
                 cloud_distance(&g, &s2, &rr, &mm);
-                printf("| %.1f | %.1f | %u | %u | %.4f | %.2fx |\n", q.sigma_rho, q.sigma_w, q.k,
-                       q.passes, 100 * rr / diag, r0 / rr);
+                printf("| %.1f | %.1f | %u | %u | %.4f | %.2fx |\n", q.sigma_rho, q.sigma_w,
+                       q.k, q.passes, 100 * rr / diag, r0 / rr);
                 tessel_cloud_free(&s2);
             }
             printf("\n%s, reduced size (smoothed cloud of %zu points):\n\n", names[f], s.count);
             printf("| n_min | sigma_max | max_diameter | representatives | reps RMS |\n");
             printf("|---|---|---|---|---|\n");
-            static const double cg[][3] = {{10, 0.01, 8},   {10, 0.01, 4},  {10, 0.01, 12},
-                                           {10, 0.002, 12}, {5, 0.002, 12}, {20, 0.002, 12},
-                                           {10, 0.0005, 12}, {10, 0.01, INFINITY},
-                                           {10, 0.002, INFINITY}};
+            static const double cg[][3] = {
+                {10, 0.01, 8},    {10, 0.01, 4},        {10, 0.01, 12},
+                {10, 0.002, 12},  {5, 0.002, 12},       {20, 0.002, 12},
+                {10, 0.0005, 12}, {10, 0.01, INFINITY}, {10, 0.002, INFINITY}};
             for (size_t i = 0; i < sizeof cg / sizeof *cg; i++) {
                 tessel_simplify_params q = tessel_simplify_params_default();
                 q.cluster.n_min = (uint32_t)cg[i][0];
@@ -457,7 +470,8 @@ static void bench_data(const char *dir, uint32_t passes)
                        q.cluster.max_diameter, r3.count, 100 * rr / diag);
                 tessel_cloud_free(&r3);
             }
-            printf("\n| data | points | h/diag %% | noisy RMS / max | smoothed RMS / max (passes) | "
+            printf("\n| data | points | h/diag %% | noisy RMS / max | smoothed RMS / max "
+                   "(passes) | "
                    "gain | median gain | time | reps | reps RMS / max | time |\n");
             printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
         }
@@ -522,8 +536,10 @@ static void bench_cube(void)
            "diagonal, %.2f h)\n\n",
            c.count, noise, noise / h);
     printf("RMS distance to the cube (in units of h = %.4f) by distance of the point's true "
-           "position from the nearest edge:\n\n", h);
-    printf("| operator | passes | < 1 h | 1-2 h | 2-4 h | > 4 h (faces) |\n|---|---|---|---|---|---|\n");
+           "position from the nearest edge:\n\n",
+           h);
+    printf("| operator | passes | < 1 h | 1-2 h | 2-4 h | > 4 h (faces) "
+           "|\n|---|---|---|---|---|---|\n");
     const double bins[] = {1, 2, 4, INFINITY};
     for (int run = -1; run < 5; run++) {
         tessel_cloud s;
@@ -548,7 +564,8 @@ static void bench_cube(void)
         }
         double sum[4] = {0}, cnt[4] = {0};
         for (size_t i = 0; i < c.count; i++) {
-            double e = cube_edge_distance(clean.xyz + 3 * i) / h, d = cube_distance(src->xyz + 3 * i);
+            double e = cube_edge_distance(clean.xyz + 3 * i) / h,
+                   d = cube_distance(src->xyz + 3 * i);
             int b = 0;
             while (e >= bins[b])
                 b++;

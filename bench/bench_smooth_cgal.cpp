@@ -72,11 +72,13 @@ int main(int argc, char **argv)
 #else
     const char *concurrency = "CGAL sequential (no TBB)";
 #endif
-    std::printf("# tessel %s vs CGAL %s (%s)\n\n", tessel_version(), CGAL_VERSION_STR, concurrency);
+    std::printf("# tessel %s vs CGAL %s (%s)\n\n", tessel_version(), CGAL_VERSION_STR,
+                concurrency);
     std::printf("RMS distance to the true surface in %% of its bounding-box diagonal; "
                 "wall seconds.\n\n");
-    std::printf("| data | points | noisy RMS | tessel smooth RMS | time | CGAL jet k=24 RMS | time |"
-                " tessel simplify: points | RMS | time | CGAL hierarchy: points | RMS | time |\n");
+    std::printf(
+        "| data | points | noisy RMS | tessel smooth RMS | time | CGAL jet k=24 RMS | time |"
+        " tessel simplify: points | RMS | time | CGAL hierarchy: points | RMS | time |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const std::string &name : names) {
         std::string in = std::string(argv[1]) + "/" + name + ".pd.n05.ply";
@@ -85,7 +87,8 @@ int main(int argc, char **argv)
         tessel_mesh mesh;
         if (tessel_cloud_read(&cloud, in.c_str(), nullptr, nullptr) != TESSEL_OK ||
             tessel_mesh_read(&mesh, gt.c_str(), nullptr, nullptr) != TESSEL_OK) {
-            std::printf("| %s | cannot read %s or %s |\n", name.c_str(), in.c_str(), gt.c_str());
+            std::printf("| %s | cannot read %s or %s |\n", name.c_str(), in.c_str(),
+                        gt.c_str());
             continue;
         }
         std::vector<Triangle> tris;
@@ -93,7 +96,8 @@ int main(int argc, char **argv)
             Point v[3];
             for (int k = 0; k < 3; k++) {
                 const float *p = mesh.xyz + 3 * size_t(mesh.triangles[3 * t + k]);
-                v[k] = Point(p[0] + mesh.offset[0], p[1] + mesh.offset[1], p[2] + mesh.offset[2]);
+                v[k] =
+                    Point(p[0] + mesh.offset[0], p[1] + mesh.offset[1], p[2] + mesh.offset[2]);
             }
             tris.emplace_back(v[0], v[1], v[2]);
         }
@@ -106,9 +110,9 @@ int main(int argc, char **argv)
                     lo[a] = std::min(lo[a], t[k][a]);
                     hi[a] = std::max(hi[a], t[k][a]);
                 }
-        double diag = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) +
-                                (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                                (hi[2] - lo[2]) * (hi[2] - lo[2]));
+        double diag =
+            std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                      (hi[2] - lo[2]) * (hi[2] - lo[2]));
         double pct = 100.0 / diag;
         std::vector<Point> noisy = points_of(cloud);
         double r0 = rms(tree, noisy);
@@ -139,10 +143,11 @@ int main(int argc, char **argv)
         double th = seconds_since(t0);
         double r4 = rms(tree, hier);
 
-        std::printf("| %s | %zu | %.4f | %.4f | %.3f | %.4f | %.3f | %zu | %.4f | %.3f | %zu | %.4f "
-                    "| %.3f |\n",
-                    name.c_str(), cloud.count, r0 * pct, r1 * pct, ts, r3 * pct, tj, reps.count,
-                    r2 * pct, tr, hier.size(), r4 * pct, th);
+        std::printf(
+            "| %s | %zu | %.4f | %.4f | %.3f | %.4f | %.3f | %zu | %.4f | %.3f | %zu | %.4f "
+            "| %.3f |\n",
+            name.c_str(), cloud.count, r0 * pct, r1 * pct, ts, r3 * pct, tj, reps.count,
+            r2 * pct, tr, hier.size(), r4 * pct, th);
         tessel_cloud_free(&reps);
         tessel_cloud_free(&smooth);
         tessel_cloud_free(&cloud);

@@ -53,11 +53,11 @@ void tessel_clusters_free(tessel_clusters *clusters)
 
 typedef struct bsp {
     const float *xyz;
-    uint32_t *order;      /* the permutation being partitioned */
-    uint32_t *scratch;    /* same size, for stable partitions */
-    uint8_t *leaf_start;  /* leaf_start[i] = 1 where a leaf's run begins */
+    uint32_t *order;     /* the permutation being partitioned */
+    uint32_t *scratch;   /* same size, for stable partitions */
+    uint8_t *leaf_start; /* leaf_start[i] = 1 where a leaf's run begins */
     double sigma_max;
-    double max_r2;        /* (max_diameter / 2)^2, world units */
+    double max_r2; /* (max_diameter / 2)^2, world units */
     uint32_t n_min;
 } bsp;
 

@@ -17,12 +17,13 @@
  * Neighbours: the k nearest points within 3 sigma_w (beyond it w < 1.1%).
  * Arbitrary points (tessel_project) find them with the kd-tree. A smoothing
  * pass, where the queries are the cloud itself, sorts the points into a
- * grid of cells about as wide as the distance to the k-th neighbour and
+ * grid of cells a little wider than the distance to the k-th neighbour and
  * serves all points of a cell from the same 27 cells (more rings of cells
  * for the rare point whose neighbours reach farther): the same neighbours
- * as the kd-tree, at a fraction of the cost. Every output position depends only on the previous
- * pass's positions, so points are independent: an OpenMP loop over cells
- * with per-point output slots gives the same bits for any thread count. */
+ * as the kd-tree, at a fraction of the cost. Every output position depends
+ * only on the previous pass's positions, so points are independent: an
+ * OpenMP loop over cells with per-point output slots gives the same bits
+ * for any thread count. */
 #include "internal.h"
 
 #include <stdlib.h>
@@ -37,23 +38,23 @@
 
 /* The scales of one operator, in world units. */
 typedef struct fit_ctl {
-    double h;               /* spacing */
-    double inv_2sw2;        /* 1 / (2 sigma_w^2) */
-    double inv_2sr2;        /* 1 / (2 sigma_rho^2) */
-    double rmax;            /* neighbour cut-off, 3 sigma_w */
-    double tol_t;           /* tolerance * h */
-    double tol_n;           /* tolerance, radians */
+    double h;        /* spacing */
+    double inv_2sw2; /* 1 / (2 sigma_w^2) */
+    double inv_2sr2; /* 1 / (2 sigma_rho^2) */
+    double rmax;     /* neighbour cut-off, 3 sigma_w */
+    double tol_t;    /* tolerance * h */
+    double tol_n;    /* tolerance, radians */
     uint32_t k, max_iterations, min_neighbors;
 } fit_ctl;
 
 struct tessel_projector {
     tessel_index *index;
     const float *xyz;
-    const float *normals;   /* orientation reference, may be NULL */
+    const float *normals; /* orientation reference, may be NULL */
     size_t count;
     fit_ctl ctl;
     int has_viewpoint;
-    double viewpoint[3];    /* local coordinates */
+    double viewpoint[3]; /* local coordinates */
 };
 
 tessel_smooth_params tessel_smooth_params_default(void)
@@ -169,9 +170,8 @@ static bool plane_from_moments(double W, const double s[3], const double mm[6], 
     if (!(W > 1e-300))
         return false;
     c[0] = s[0] / W, c[1] = s[1] / W, c[2] = s[2] / W;
-    double cov[6] = {mm[0] / W - c[0] * c[0], mm[1] / W - c[0] * c[1],
-                     mm[2] / W - c[0] * c[2], mm[3] / W - c[1] * c[1],
-                     mm[4] / W - c[1] * c[2], mm[5] / W - c[2] * c[2]};
+    double cov[6] = {mm[0] / W - c[0] * c[0], mm[1] / W - c[0] * c[1], mm[2] / W - c[0] * c[2],
+                     mm[3] / W - c[1] * c[1], mm[4] / W - c[1] * c[2], mm[5] / W - c[2] * c[2]};
     return smallest_eigenvector(cov, n);
 }
 
@@ -433,15 +433,15 @@ tessel_status tessel_project(const tessel_projector *pr, const float q[3], float
  * cells are near in memory), each cell a run. */
 typedef struct cell_grid {
     double origin[3];
-    double c;             /* cell size */
+    double c; /* cell size */
     uint32_t dims[3];
     size_t n, ncell;
-    uint32_t *perm;       /* sorted position -> point index */
-    float *sxyz;          /* n*3 coordinates in sorted order */
-    uint64_t *key;        /* ncell cell keys, increasing */
-    uint32_t *start;      /* ncell + 1 run starts */
-    uint32_t *slot;       /* open-addressing hash: key -> cell, or
-                             UINT32_MAX; hmask + 1 slots */
+    uint32_t *perm;  /* sorted position -> point index */
+    float *sxyz;     /* n*3 coordinates in sorted order */
+    uint64_t *key;   /* ncell cell keys, increasing */
+    uint32_t *start; /* ncell + 1 run starts */
+    uint32_t *slot;  /* open-addressing hash: key -> cell, or
+                        UINT32_MAX; hmask + 1 slots */
     size_t hmask;
 } cell_grid;
 
@@ -609,7 +609,8 @@ static size_t grid_ring(const cell_grid *g, const uint32_t cc[3], int ring, uint
             for (int dz = -ring; dz <= ring; dz++) {
                 if (abs(dx) != ring && abs(dy) != ring && abs(dz) != ring)
                     continue;
-                int64_t x = (int64_t)cc[0] + dx, y = (int64_t)cc[1] + dy, z = (int64_t)cc[2] + dz;
+                int64_t x = (int64_t)cc[0] + dx, y = (int64_t)cc[1] + dy,
+                        z = (int64_t)cc[2] + dz;
                 if (x < 0 || y < 0 || z < 0 || x >= g->dims[0] || y >= g->dims[1] ||
                     z >= g->dims[2])
                     continue;
@@ -628,8 +629,8 @@ static size_t grid_ring(const cell_grid *g, const uint32_t cc[3], int ring, uint
 typedef struct topk {
     size_t cnt, k;
     float d[SMOOTH_MAX_K];
-    uint32_t id[SMOOTH_MAX_K];   /* point index */
-    uint32_t pos[SMOOTH_MAX_K];  /* sorted position */
+    uint32_t id[SMOOTH_MAX_K];  /* point index */
+    uint32_t pos[SMOOTH_MAX_K]; /* sorted position */
 } topk;
 
 static inline bool before(float d, uint32_t i, float e, uint32_t j)
@@ -832,7 +833,7 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
 typedef struct pass_ctx {
     const fit_ctl *f;
     const cell_grid *g;
-    const float *normals;    /* the current cloud's, by point index; or NULL */
+    const float *normals; /* the current cloud's, by point index; or NULL */
     int has_viewpoint;
     double viewpoint[3];
     float *out_xyz, *out_nrm;
@@ -892,10 +893,10 @@ static void smooth_cell(const pass_ctx *x, block *b, size_t ci, size_t *unfit, s
                 double lo = (int64_t)cc[a] - ring <= 0
                                 ? INFINITY
                                 : q[a] - (g->origin[a] + ((double)cc[a] - (double)ring) * g->c);
-                double hi = (int64_t)cc[a] + ring >= (int64_t)g->dims[a] - 1
-                                ? INFINITY
-                                : g->origin[a] + ((double)cc[a] + (double)ring + 1.0) * g->c -
-                                      q[a];
+                double hi =
+                    (int64_t)cc[a] + ring >= (int64_t)g->dims[a] - 1
+                        ? INFINITY
+                        : g->origin[a] + ((double)cc[a] + (double)ring + 1.0) * g->c - q[a];
                 cover = fmin(cover, fmin(lo, hi));
             }
             double need = t.cnt < t.k ? f->rmax : fmin(sqrt((double)t.d[t.cnt - 1]), f->rmax);

@@ -61,7 +61,8 @@ static void check_clusters(const tessel_cloud *c, const tessel_clusters *cl,
     CHECK(cl->point_count == n && cl->count >= 1 && cl->count <= n);
     CHECK(cl->offsets[0] == 0 && cl->offsets[cl->count] == n);
     uint8_t *seen = calloc(n, 1);
-    size_t out_of_range = 0, dup = 0, bad_label = 0, unsorted = 0, empty = 0, too_wide = 0, too_curved = 0;
+    size_t out_of_range = 0, dup = 0, bad_label = 0, unsorted = 0, empty = 0, too_wide = 0,
+           too_curved = 0;
     double rmax = 0.5 * p->max_diameter * cl->spacing;
     for (size_t k = 0; k < cl->count; k++) {
         size_t a = cl->offsets[k], b = cl->offsets[k + 1];

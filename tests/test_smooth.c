@@ -142,7 +142,8 @@ static void test_plane(void)
     CHECK(out.count == in.count && out.normals != NULL);
     double before = rms_z(&in), after = rms_z(&out);
     CHECK_MSG(after * 3.0 < before, "plane rms %g -> %g", before, after);
-    CHECK_MSG(st.spacing > 0.3 * h && st.spacing < 1.5 * h, "spacing %g, grid %g", st.spacing, h);
+    CHECK_MSG(st.spacing > 0.3 * h && st.spacing < 1.5 * h, "spacing %g, grid %g", st.spacing,
+              h);
     CHECK(st.unfit == 0);
     CHECK(st.mean_iterations >= 1.0 && st.mean_iterations < p.max_iterations);
     CHECK(st.rms_displacement > 0.0 && st.max_displacement >= st.rms_displacement);
@@ -452,7 +453,8 @@ static void test_pass_matches_projector(void)
         c.xyz[3 * i + 2] = (float)(0.05 * sin(3.0) + 0.001 * gauss());
     }
     for (; i < n_plane + n_clump + n_dup; i++) /* 40 points x 10 copies */
-        memcpy(c.xyz + 3 * i, c.xyz + 3 * ((i - n_plane - n_clump) / 10 * 37), 3 * sizeof(float));
+        memcpy(c.xyz + 3 * i, c.xyz + 3 * ((i - n_plane - n_clump) / 10 * 37),
+               3 * sizeof(float));
     for (; i < n; i++) { /* sparse sheet beside it */
         c.xyz[3 * i] = (float)(1.2 + 0.6 * urand());
         c.xyz[3 * i + 1] = (float)urand();

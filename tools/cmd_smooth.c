@@ -48,7 +48,7 @@ static const char simplify_help[] =
 typedef struct smooth_opts {
     tessel_smooth_params smooth;
     tessel_cluster_params cluster;
-    long pre_passes;   /* simplify --smooth */
+    long pre_passes; /* simplify --smooth */
     int keep_unfit;
     int ascii;
     bool simplify;
@@ -78,23 +78,23 @@ static int smooth_option(void *ctx, int argc, char **argv, int *i)
         o->keep_unfit = 1;
         return 1;
     }
-#define INT_OPT(name, lo, hi, dst)                                                         \
-    if (strcmp(a, name) == 0) {                                                            \
-        if (!(v = value_of(argc, argv, i)) || !cli_parse_int(a, v, lo, hi, &n))            \
-            return -1;                                                                     \
-        dst = n;                                                                           \
-        return 1;                                                                          \
+#define INT_OPT(name, lo, hi, dst)                                                             \
+    if (strcmp(a, name) == 0) {                                                                \
+        if (!(v = value_of(argc, argv, i)) || !cli_parse_int(a, v, lo, hi, &n))                \
+            return -1;                                                                         \
+        dst = n;                                                                               \
+        return 1;                                                                              \
     }
-#define POS_OPT(name, dst)                                                                 \
-    if (strcmp(a, name) == 0) {                                                            \
-        if (!(v = value_of(argc, argv, i)) || !cli_parse_double(a, v, &x))                 \
-            return -1;                                                                     \
-        if (!(x > 0)) {                                                                    \
-            cli_error("%s must be positive, got '%s'", a, v);                              \
-            return -1;                                                                     \
-        }                                                                                  \
-        dst = x;                                                                           \
-        return 1;                                                                          \
+#define POS_OPT(name, dst)                                                                     \
+    if (strcmp(a, name) == 0) {                                                                \
+        if (!(v = value_of(argc, argv, i)) || !cli_parse_double(a, v, &x))                     \
+            return -1;                                                                         \
+        if (!(x > 0)) {                                                                        \
+            cli_error("%s must be positive, got '%s'", a, v);                                  \
+            return -1;                                                                         \
+        }                                                                                      \
+        dst = x;                                                                               \
+        return 1;                                                                              \
     }
     INT_OPT("--k", 3, 256, o->smooth.k)
     POS_OPT("--sigma-rho", o->smooth.sigma_rho)
@@ -240,8 +240,8 @@ int cmd_smooth(int argc, char **argv)
                 n, st.spacing, o.smooth.spacing > 0 ? " (given)" : " (estimated)",
                 o.smooth.passes, o.smooth.passes == 1 ? "" : "es", o.smooth.k,
                 o.smooth.sigma_rho, o.smooth.sigma_w, st.unfit, st.mean_iterations,
-                st.rms_displacement / st.spacing, st.max_displacement / st.spacing, out, seconds,
-                ts, ts > 0 ? (double)n * o.smooth.passes / ts / 1e6 : 0.0);
+                st.rms_displacement / st.spacing, st.max_displacement / st.spacing, out,
+                seconds, ts, ts > 0 ? (double)n * o.smooth.passes / ts / 1e6 : 0.0);
     }
     return CLI_OK;
 }
