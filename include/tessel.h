@@ -1099,6 +1099,7 @@ typedef struct tessel_refine_stats {
     size_t skipped_invalid;   /* splits or flips skipped because they would
                                  fold the mesh or make it self-intersect */
     size_t unfit;             /* splits skipped because Q had no fit there */
+    size_t border_edges;      /* edges with one triangle in the result */
 } tessel_refine_stats;
 
 /* Refines mesh in place against cloud (normally the smoothed cloud, in the

@@ -104,11 +104,15 @@ typedef struct af {
     uint32_t *knn;   /* n*k neighbours, self excluded, nearest first */
     float *nnd;      /* distance to the nearest point at a distance > 0 */
     uint8_t *dup;    /* exact duplicate of a point with a smaller index */
+    uint32_t *seen;  /* candidate already looked at in this search */
+    uint32_t seen_now;
+    float *star;     /* n*3 sums of the normals of each vertex's triangles */
     float *ln;       /* n*3 unit surface normal lines (sign not meaningful) */
     int8_t *vsign;   /* orientation of ln taken by the surface, 0 if unused */
     /* derived parameters */
     double cos_phi, theta0, theta_step, theta_max, cos_theta_max, eps1, cos_normal;
     double cos_closing_fold, cos_closing_normal, cos_last_fold;
+    double *cos_level; /* cosines of theta0, theta0 + eps2, ..., then -2 */
     double max_hole_radius;
     uint32_t pass;       /* hole-filling pass, for edge marks */
     uint32_t *scratch_u; /* hole filling: corners */
@@ -462,10 +466,19 @@ bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const ui
     }
     if (shared == 1) {
         /* Common vertex: they meet elsewhere iff the edge opposite it in one
-         * meets the other. */
+         * meets the other. When that edge lies strictly on one side of the
+         * other's plane, the triangle touches that plane at the common
+         * vertex only: no meeting. */
         int i = sa[0], j = sb[0];
-        return segment_triangle(pb[(j + 1) % 3], pb[(j + 2) % 3], pa[0], pa[1], pa[2]) ||
-               segment_triangle(pa[(i + 1) % 3], pa[(i + 2) % 3], pb[0], pb[1], pb[2]);
+        const double *b1 = pb[(j + 1) % 3], *b2 = pb[(j + 2) % 3];
+        const double *a1 = pa[(i + 1) % 3], *a2 = pa[(i + 2) % 3];
+        if (sgn(tsl_orient3d(pa[0], pa[1], pa[2], b1)) *
+                sgn(tsl_orient3d(pa[0], pa[1], pa[2], b2)) > 0 ||
+            sgn(tsl_orient3d(pb[0], pb[1], pb[2], a1)) *
+                sgn(tsl_orient3d(pb[0], pb[1], pb[2], a2)) > 0)
+            return false;
+        return segment_triangle(b1, b2, pa[0], pa[1], pa[2]) ||
+               segment_triangle(a1, a2, pb[0], pb[1], pb[2]);
     }
     /* Disjoint ids: planes first, then the six edge-triangle tests (closed
      * triangles that meet always have an edge of one meeting the other). */
@@ -559,6 +572,9 @@ static tessel_status add_triangle(af *s, uint32_t x, uint32_t y, uint32_t z, uin
         s->vhead[v[i]] = c;
     }
     tri_normal(p[0], p[1], p[2], n);
+    for (int i = 0; i < 3; i++)
+        for (int c = 0; c < 3; c++)
+            s->star[3 * (size_t)v[i] + c] += (float)n[c];
     for (int i = 0; i < 3; i++)
         if (!s->vsign[v[i]]) {
             const float *l = s->ln + 3 * (size_t)v[i];
@@ -681,21 +697,35 @@ static inline double cross2(const double a[2], const double b[2])
  * too close to tell in floating point. */
 enum { PROJ_APART, PROJ_UNSURE, PROJ_OVERLAP };
 
-/* Where direction d lies with respect to the sector from p counter-
- * clockwise to q (narrower than pi): +1 clearly inside, -1 clearly
- * outside, 0 on its boundary within a relative tolerance (sine 1e-6). */
-static int sector_side(const double d[2], const double p[2], const double q[2])
+/* Twice the signed area of the projection of (0, a, b) onto the plane with
+ * unit normal n: the 2D cross product there, n . (a x b). */
+static inline double det_n(const double n[3], const double a[3], const double b[3])
 {
-    const double tol = 1e-6;
-    double ld = sqrt(d[0] * d[0] + d[1] * d[1]), lp = sqrt(p[0] * p[0] + p[1] * p[1]),
-           lq = sqrt(q[0] * q[0] + q[1] * q[1]);
-    double a = cross2(p, d), b = cross2(d, q);
-    double ta = tol * lp * ld, tb = tol * ld * lq;
-    if (a > ta && b > tb)
+    return n[0] * (a[1] * b[2] - a[2] * b[1]) + n[1] * (a[2] * b[0] - a[0] * b[2]) +
+           n[2] * (a[0] * b[1] - a[1] * b[0]);
+}
+
+/* Squared length of a's projection onto the plane with unit normal n. */
+static inline double len2_n(const double n[3], const double a[3])
+{
+    double h = tsl_dot(a, n);
+    return dmax(tsl_dot(a, a) - h * h, 0.0);
+}
+
+/* Where direction d lies with respect to the sector from p counter-
+ * clockwise to q (narrower than pi), given pd = cross(p, d), dq = cross(d,
+ * q) and the squared lengths: +1 clearly inside, -1 clearly outside, 0 on
+ * its boundary within a relative tolerance (sine 1e-6). */
+static int sector_side(double pd, double dq, double lp, double ld, double lq)
+{
+    const double tol2 = 1e-12;
+    bool in_a = pd > 0.0 && pd * pd > tol2 * lp * ld;
+    bool in_b = dq > 0.0 && dq * dq > tol2 * ld * lq;
+    bool out_a = pd < 0.0 && pd * pd > tol2 * lp * ld;
+    bool out_b = dq < 0.0 && dq * dq > tol2 * ld * lq;
+    if (in_a && in_b)
         return 1;
-    if (a < -ta || b < -tb)
-        return -1;
-    return 0;
+    return out_a || out_b ? -1 : 0;
 }
 
 /* The paper's projection test for two triangles X and E projected onto the
@@ -706,31 +736,35 @@ static int sector_side(const double d[2], const double p[2], const double q[2])
 static int projected_relation(const double *px[3], const double *pe[3], int ix, int ie,
                               const double nrm[3])
 {
+    if (ix >= 0) {
+        /* Sectors around the shared vertex: apart when every bounding ray
+         * of each is clearly outside the other (both are narrower than pi,
+         * so neither can contain the other). */
+        const double *o = px[ix];
+        double p1[3], q1[3], p2[3], q2[3];
+        tsl_sub(px[(ix + 1) % 3], o, p1);
+        tsl_sub(px[(ix + 2) % 3], o, q1);
+        tsl_sub(pe[(ie + 1) % 3], o, p2);
+        tsl_sub(pe[(ie + 2) % 3], o, q2);
+        if (det_n(nrm, p1, q1) <= 0.0 || det_n(nrm, p2, q2) <= 0.0)
+            return PROJ_OVERLAP; /* folded in this projection */
+        double lp1 = len2_n(nrm, p1), lq1 = len2_n(nrm, q1);
+        double lp2 = len2_n(nrm, p2), lq2 = len2_n(nrm, q2);
+        double d_p1p2 = det_n(nrm, p1, p2), d_p1q2 = det_n(nrm, p1, q2);
+        double d_q1p2 = det_n(nrm, q1, p2), d_q1q2 = det_n(nrm, q1, q2);
+        int s1 = sector_side(d_p1p2, -d_q1p2, lp1, lp2, lq1); /* p2 in X */
+        int s2 = sector_side(d_p1q2, -d_q1q2, lp1, lq2, lq1); /* q2 in X */
+        int s3 = sector_side(-d_p1p2, d_p1q2, lp2, lp1, lq2); /* p1 in E */
+        int s4 = sector_side(-d_q1p2, d_q1q2, lp2, lq1, lq2); /* q1 in E */
+        if (s1 > 0 || s2 > 0 || s3 > 0 || s4 > 0)
+            return PROJ_OVERLAP;
+        return s1 < 0 && s2 < 0 && s3 < 0 && s4 < 0 ? PROJ_APART : PROJ_UNSURE;
+    }
     double u[3], v[3], x[3][2], y[3][2];
     plane_frame(nrm, u, v);
     for (int i = 0; i < 3; i++) {
         project2(px[i], px[0], u, v, x[i]);
         project2(pe[i], px[0], u, v, y[i]);
-    }
-    if (ix >= 0) {
-        /* Sectors around the shared vertex: apart when every bounding ray
-         * of each is clearly outside the other (both are narrower than pi,
-         * so neither can contain the other). */
-        const double *o = x[ix];
-        double p1[2], q1[2], p2[2], q2[2];
-        for (int c = 0; c < 2; c++) {
-            p1[c] = x[(ix + 1) % 3][c] - o[c];
-            q1[c] = x[(ix + 2) % 3][c] - o[c];
-            p2[c] = y[(ie + 1) % 3][c] - o[c];
-            q2[c] = y[(ie + 2) % 3][c] - o[c];
-        }
-        if (cross2(p1, q1) <= 0.0 || cross2(p2, q2) <= 0.0)
-            return PROJ_OVERLAP; /* folded in this projection */
-        int s1 = sector_side(p2, p1, q1), s2 = sector_side(q2, p1, q1);
-        int s3 = sector_side(p1, p2, q2), s4 = sector_side(q1, p2, q2);
-        if (s1 > 0 || s2 > 0 || s3 > 0 || s4 > 0)
-            return PROJ_OVERLAP;
-        return s1 < 0 && s2 < 0 && s3 < 0 && s4 < 0 ? PROJ_APART : PROJ_UNSURE;
     }
     /* Separating axis among the six edges (both counter-clockwise). */
     double scale = 0.0;
@@ -766,6 +800,7 @@ typedef struct af_tri {
     double p[3][3];
     double n[3];
     double maxlen;
+    double centroid[3], radius; /* bounding sphere */
     double cos_fold; /* sharpest fold allowed along an edge it shares */
     bool exact_only; /* skip the projection test: only validity counts */
 } af_tri;
@@ -787,6 +822,15 @@ static bool make_tri(const af *s, uint32_t a, uint32_t b, uint32_t c, af_tri *x)
         tsl_sub(x->p[(i + 1) % 3], x->p[i], d);
         x->maxlen = dmax(x->maxlen, tsl_norm(d));
     }
+    double r2 = 0.0;
+    for (int k = 0; k < 3; k++)
+        x->centroid[k] = (x->p[0][k] + x->p[1][k] + x->p[2][k]) / 3.0;
+    for (int i = 0; i < 3; i++) {
+        double d[3];
+        tsl_sub(x->p[i], x->centroid, d);
+        r2 = dmax(r2, tsl_dot(d, d));
+    }
+    x->radius = sqrt(r2);
     /* Sine of the smallest angle is at least area2 / maxlen^2. */
     if (!(area2 > 1e-9 * x->maxlen * x->maxlen))
         return false;
@@ -865,14 +909,22 @@ static bool conflict(const af_tri *x, const double star[3][3], const uint32_t ev
          * in height (farther, overlapping projections are another layer). */
         double nrm[3] = {x->n[0] + ne[0], x->n[1] + ne[1], x->n[2] + ne[2]};
         tsl_normalize(nrm);
-        double h = 0.0;
+        /* Centroids and bounding radii first: discs apart in the plane
+         * mean projections apart. */
+        double ce[3], delta[3], re2 = 0.0;
+        for (int c = 0; c < 3; c++)
+            ce[c] = (pe[0][c] + pe[1][c] + pe[2][c]) / 3.0;
         for (int i = 0; i < 3; i++) {
             double dd[3];
-            tsl_sub(pe[i], px[i], dd);
-            h += tsl_dot(dd, nrm) / 3.0;
+            tsl_sub(pe[i], ce, dd);
+            re2 = dmax(re2, tsl_dot(dd, dd));
         }
+        tsl_sub(ce, x->centroid, delta);
+        double h = tsl_dot(delta, nrm), reach = x->radius + sqrt(re2);
         bool near = fabs(h) < 0.5 * x->maxlen;
-        if (near || touches)
+        if (tsl_dot(delta, delta) - h * h > reach * reach)
+            rel = PROJ_APART;
+        else if (near || touches)
             rel = projected_relation(px, pe, -1, -1, nrm);
         if (rel == PROJ_OVERLAP && !near)
             rel = PROJ_UNSURE;
@@ -914,11 +966,9 @@ static tessel_status check_triangle(af *s, const af_tri *x, const af_tri *other,
     /* Tangent planes of the vertices: their stars' mean normal (with x's). */
     double star[3][3];
     for (int i = 0; i < 3; i++) {
+        const float *sum = s->star + 3 * (size_t)x->v[i];
         for (int c = 0; c < 3; c++)
-            star[i][c] = x->n[c];
-        for (uint32_t cn = s->vhead[x->v[i]]; cn != NONE; cn = s->cnext[cn])
-            for (int c = 0; c < 3; c++)
-                star[i][c] += s->ti[cn / 3].n[c];
+            star[i][c] = x->n[c] + sum[c];
         if (!tsl_normalize(star[i]))
             for (int c = 0; c < 3; c++)
                 star[i][c] = x->n[c];
@@ -1080,17 +1130,19 @@ static tessel_status find_plan(af *s, uint32_t id, af_plan *plan, bool *found)
 
     af_cand cand[2 * MAX_K];
     size_t nc = 0;
+    if (++s->seen_now == 0) {
+        memset(s->seen, 0, s->n * sizeof *s->seen);
+        s->seen_now = 1;
+    }
     for (int side = 0; side < 2; side++) {
         const uint32_t *nb = s->knn + (size_t)(side ? b : a) * s->k;
         for (uint32_t j = 0; j < s->k; j++) {
             uint32_t t = nb[j];
             if (t == NONE || t == a || t == b || t == c || s->dup[t] || is_interior(s, t))
                 continue;
-            bool seen = false;
-            for (size_t q = 0; q < nc && !seen; q++)
-                seen = cand[q].t == t;
-            if (seen)
+            if (s->seen[t] == s->seen_now)
                 continue;
+            s->seen[t] = s->seen_now;
             double pt[3], at[3], bt[3];
             point(s, t, pt);
             tsl_sub(pt, pa, at);
@@ -1112,15 +1164,25 @@ static tessel_status find_plan(af *s, uint32_t id, af_plan *plan, bool *found)
             double cosd = tsl_dot(nt, n1) / area2;
             if (cosd < s->cos_theta_max)
                 continue;
-            double ang = acos(dmin(1.0, dmax(-1.0, cosd)));
-            int level = ang <= s->theta0 ? 0 : (int)ceil((ang - s->theta0) / s->theta_step);
+            int level = 0;
+            while (cosd < s->cos_level[level])
+                level++;
             cand[nc].t = t;
             cand[nc].level = level;
             cand[nc].cos_t = tsl_dot(at, bt) / (la * lb);
             nc++;
         }
     }
-    qsort(cand, nc, sizeof *cand, cmp_cand);
+    /* Insertion sort: a few dozen candidates. */
+    for (size_t i = 1; i < nc; i++) {
+        af_cand key = cand[i];
+        size_t j = i;
+        while (j > 0 && cmp_cand(&key, &cand[j - 1]) < 0) {
+            cand[j] = cand[j - 1];
+            j--;
+        }
+        cand[j] = key;
+    }
     for (size_t i = 0; i < nc; i++) {
         uint32_t t = cand[i].t;
         int kind;
@@ -1489,6 +1551,9 @@ static void af_free(af *s)
     free(s->knn);
     free(s->nnd);
     free(s->dup);
+    free(s->seen);
+    free(s->star);
+    free(s->cos_level);
     free(s->ln);
     free(s->vsign);
     free(s->tri);
@@ -1836,9 +1901,19 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
     s.vhead = tsl_alloc_array(s.n, sizeof *s.vhead);
     s.vin = tsl_alloc_array(s.n, sizeof *s.vin);
     s.vout = tsl_alloc_array(s.n, sizeof *s.vout);
+    s.seen = tsl_calloc_array(s.n, sizeof *s.seen);
+    s.star = tsl_calloc_array(3 * s.n, sizeof *s.star);
+    size_t levels = (size_t)ceil((s.theta_max - s.theta0) / s.theta_step) + 2;
+    s.cos_level = tsl_alloc_array(levels, sizeof *s.cos_level);
     st = TESSEL_ERR_NOMEM;
-    if (!s.tri || !s.ti || !s.cnext || !s.vhead || !s.vin || !s.vout)
+    if (!s.tri || !s.ti || !s.cnext || !s.vhead || !s.vin || !s.vout || !s.seen || !s.star ||
+        !s.cos_level)
         goto fail;
+    /* Level j admits normals turned by up to theta0 + j eps2 (capped at
+     * theta_max, which the candidate search enforces). */
+    for (size_t j = 0; j + 1 < levels; j++)
+        s.cos_level[j] = cos(dmin(s.theta0 + (double)j * s.theta_step, s.theta_max));
+    s.cos_level[levels - 1] = -2.0;
     for (size_t i = 0; i < s.n; i++)
         s.vhead[i] = s.vin[i] = s.vout[i] = NONE;
 

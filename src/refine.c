@@ -242,8 +242,16 @@ static tessel_status check_new(rf *r, uint32_t t, const double old_n[3], const u
     const double *pp[3] = {p[0], p[1], p[2]};
     if (tsl_triangle_degenerate(pp))
         return TESSEL_OK;
-    double lo[3], hi[3];
+    double lo[3], hi[3], centroid[3], radius = 0.0;
     tri_box(r, t, lo, hi);
+    for (int c = 0; c < 3; c++)
+        centroid[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
+    for (int i = 0; i < 3; i++) {
+        double d[3];
+        tsl_sub(p[i], centroid, d);
+        double l = tsl_norm(d);
+        radius = l > radius ? l : radius;
+    }
     tessel_status st = tsl_trigrid_query(&r->grid, lo, hi);
     if (st)
         return st;
@@ -274,6 +282,23 @@ static tessel_status check_new(rf *r, uint32_t t, const double old_n[3], const u
             }
             if (apart)
                 continue;
+            /* Bounding spheres apart (triangles sharing no vertex). */
+            if (tv[0] != ev[0] && tv[0] != ev[1] && tv[0] != ev[2] && tv[1] != ev[0] &&
+                tv[1] != ev[1] && tv[1] != ev[2] && tv[2] != ev[0] && tv[2] != ev[1] &&
+                tv[2] != ev[2]) {
+                double ce[3], d[3], re2 = 0.0;
+                for (int c = 0; c < 3; c++)
+                    ce[c] = (q[0][c] + q[1][c] + q[2][c]) / 3.0;
+                for (int j = 0; j < 3; j++) {
+                    tsl_sub(q[j], ce, d);
+                    double l = tsl_dot(d, d);
+                    re2 = l > re2 ? l : re2;
+                }
+                tsl_sub(ce, centroid, d);
+                double reach = radius + sqrt(re2);
+                if (tsl_dot(d, d) > reach * reach)
+                    continue;
+            }
         }
         if (tsl_triangles_intersect(tv, pp, ev, pq))
             return TESSEL_OK;
@@ -613,6 +638,32 @@ static tessel_status vertex_normals(const rf *r, double **out)
     return TESSEL_OK;
 }
 
+/* A fresh grid for the round, with cells two mean edges wide: the edges
+ * shrink from round to round. */
+static tessel_status build_grid(rf *r)
+{
+    tsl_trigrid_free(&r->grid);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < r->nv; v++)
+        for (int k = 0; k < 3; k++) {
+            lo[k] = r->xyz[3 * v + k] < lo[k] ? r->xyz[3 * v + k] : lo[k];
+            hi[k] = r->xyz[3 * v + k] > hi[k] ? r->xyz[3 * v + k] : hi[k];
+        }
+    double mean_len = 0.0;
+    for (size_t t = 0; t < r->nt; t++) {
+        double a[3], b[3], d[3];
+        vtx(r, r->tri[3 * t], a);
+        vtx(r, r->tri[3 * t + 1], b);
+        tsl_sub(b, a, d);
+        mean_len += tsl_norm(d);
+    }
+    mean_len /= (double)r->nt;
+    tessel_status st = tsl_trigrid_init(&r->grid, lo, hi, 2.0 * mean_len);
+    for (size_t t = 0; t < r->nt && !st; t++)
+        st = grid_add(r, (uint32_t)t);
+    return st;
+}
+
 typedef struct round_ctx {
     const tessel_index *index;
     const tessel_cloud *cloud;
@@ -797,34 +848,14 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
     c.min_len = p.min_edge_length * c.h;
     c.k = p.k < cloud->count ? p.k : (uint32_t)cloud->count;
     c.threads = p.threads;
-    {
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (size_t v = 0; v < r.nv; v++)
-            for (int k = 0; k < 3; k++) {
-                lo[k] = r.xyz[3 * v + k] < lo[k] ? r.xyz[3 * v + k] : lo[k];
-                hi[k] = r.xyz[3 * v + k] > hi[k] ? r.xyz[3 * v + k] : hi[k];
-            }
-        double mean_len = 0.0;
-        for (size_t t = 0; t < r.nt; t++) {
-            double a[3], b[3], d[3];
-            vtx(&r, r.tri[3 * t], a);
-            vtx(&r, r.tri[3 * t + 1], b);
-            tsl_sub(b, a, d);
-            mean_len += tsl_norm(d);
-        }
-        mean_len /= (double)r.nt;
-        if ((st = tsl_trigrid_init(&r.grid, lo, hi, 2.0 * mean_len)))
-            goto done;
-        for (size_t t = 0; t < r.nt; t++)
-            if ((st = grid_add(&r, (uint32_t)t)))
-                goto done;
-    }
     for (uint32_t round = 0; round < p.rounds; round++) {
         if ((st = tsl_progress(callbacks, "refine", (double)round / p.rounds)))
             goto done;
-        if ((st = one_round(&r, &c, &p)))
+        if ((st = build_grid(&r)) || (st = one_round(&r, &c, &p)))
             goto done;
     }
+    for (size_t h = 0; h < 3 * r.nt; h++)
+        r.stats.border_edges += r.twin[h] == NONE;
     /* Commit into the caller's mesh. */
     {
         tessel_mesh out;

@@ -196,16 +196,8 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
 
     s.vertices = mesh->vertex_count;
     s.triangles = mesh->triangle_count;
-    s.border_edges = s.front.border_edges;
-    if (p.refine.rounds > 0) {
-        /* Refinement splits border edges too: count them again. */
-        tessel_check_params cp = tessel_check_params_default();
-        cp.self_intersections = 0;
-        tessel_mesh_report rep;
-        if ((st = tessel_mesh_check(mesh, &cp, &rep)))
-            goto fail;
-        s.border_edges = rep.boundary_edges;
-    }
+    /* Refinement splits border edges too. */
+    s.border_edges = p.refine.rounds > 0 ? s.refine.border_edges : s.front.border_edges;
     s.seconds_total = now() - t_all;
     tessel_projector_destroy(projector);
     tessel_cloud_free(&smoothed);

@@ -261,8 +261,10 @@ static void test_pipeline_open(void)
     /* Square with a round hole: two borders, one component. */
     tessel_cloud c;
     CHECK(surf_plane_hole(&c, 0.02, 10) == TESSEL_OK);
-    tessel_mesh m = run_pipeline(&c, 0.01, 11, NULL);
+    tessel_smooth_recon_stats s;
+    tessel_mesh m = run_pipeline(&c, 0.01, 11, &s);
     tessel_mesh_report r = check(&m);
+    CHECK(s.border_edges == r.boundary_edges && s.triangles == r.triangles);
     CHECK(tessel_mesh_report_valid(&r) && r.self_intersections == 0);
     CHECK_MSG(r.components == 1 && r.boundary_loops == 2, "plane with hole: %zu components, "
                                                           "%zu loops",

@@ -1,0 +1,198 @@
+/* Benchmark of the noisy-cloud pipeline (tessel_reconstruct_smooth: smooth,
+ * cluster, reduce, advancing front, refine), with the time of every stage
+ * as in Table 1 of Mederos, Velho & de Figueiredo 2003:
+ *   1. sizes: a fixed-seed torus (radii 1 and 0.35) sampled at random with
+ *      Gaussian noise of half the mean spacing, 10^4 .. 10^7 points (the
+ *      largest given by --max); input points per second of the whole
+ *      pipeline, and of each stage;
+ *   2. with --data DIR: every NAME.pd.n05.ply and NAME.pd.ply in DIR, with
+ *      the result's quality against NAME.gt.ply (F-score at 1% of the
+ *      diagonal, Chamfer distance, boundary and non-manifold edges,
+ *      self-intersecting pairs, components) from tessel_mesh_check, and
+ *      --out DIR writes the meshes.
+ *
+ * usage: bench_pipeline [--max N] [--threads T] [--refine R] [--data DIR]
+ *                       [--out DIR] [--skip-sizes] */
+#include "tessel.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+static double now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static uint64_t rng_state;
+static double urand(void)
+{
+    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+static double gauss(void)
+{
+    double u = urand(), v = urand();
+    return sqrt(-2.0 * log(u + 1e-300)) * cos(6.283185307179586 * v);
+}
+
+/* n points uniformly at random on the torus (radii 1, 0.35) plus Gaussian
+ * noise of sigma = 0.5 times the expected mean spacing per axis. */
+static int noisy_torus(tessel_cloud *c, size_t n, uint64_t seed)
+{
+    if (tessel_cloud_alloc(c, n, 0, 0) != TESSEL_OK)
+        return 0;
+    rng_state = seed;
+    const double R = 1.0, r = 0.35, area = 4.0 * 9.8696044010893586 * R * r;
+    /* Mean nearest-neighbour distance of a uniform random sample. */
+    double spacing = 0.5 * sqrt(area / (double)n);
+    for (size_t i = 0; i < n;) {
+        double u = 6.283185307179586 * urand(), v = 6.283185307179586 * urand();
+        if (urand() * (R + r) > R + r * cos(v))
+            continue;
+        double rr = R + r * cos(v);
+        double p[3] = {rr * cos(u), rr * sin(u), r * sin(v)};
+        for (int k = 0; k < 3; k++)
+            c->xyz[3 * i + (size_t)k] = (float)(p[k] + 0.5 * spacing * gauss());
+        i++;
+    }
+    return 1;
+}
+
+static void print_row(const char *name, size_t n, double seconds,
+                      const tessel_smooth_recon_stats *s)
+{
+    printf("%-22s %10zu %8.3f %8.3f %8.3f %8.3f %8.3f %8.3f %9.3f %9zu %10zu %8zu\n", name, n,
+           s->seconds_spacing, s->seconds_smooth, s->seconds_simplify, s->seconds_front,
+           s->seconds_refine, seconds, (double)n / seconds / 1e6, s->representatives,
+           s->triangles, s->border_edges);
+}
+
+static void header(void)
+{
+    printf("%-22s %10s %8s %8s %8s %8s %8s %8s %9s %9s %10s %8s\n", "input", "points",
+           "h (s)", "smooth", "cluster", "front", "refine", "total", "Mpts/s", "reps",
+           "triangles", "border");
+}
+
+static void run_sizes(size_t max, const tessel_smooth_recon_params *p)
+{
+    printf("Noisy torus, random sampling, noise 0.5 h; seconds per stage "
+           "(h = spacing estimate; cluster = clusters + representatives)\n");
+    header();
+    for (size_t n = 10000; n <= max; n *= 10) {
+        tessel_cloud c;
+        if (!noisy_torus(&c, n, 42 + n)) {
+            fprintf(stderr, "bench_pipeline: out of memory at %zu points\n", n);
+            return;
+        }
+        tessel_mesh m;
+        tessel_smooth_recon_stats s;
+        double t0 = now();
+        tessel_status st = tessel_reconstruct_smooth(&c, p, NULL, &m, &s);
+        double secs = now() - t0;
+        if (st != TESSEL_OK) {
+            fprintf(stderr, "bench_pipeline: %zu points: %s\n", n, tessel_status_str(st));
+        } else {
+            char name[64];
+            snprintf(name, sizeof name, "torus %.0e", (double)n);
+            print_row(name, n, secs, &s);
+        }
+        tessel_mesh_free(&m);
+        tessel_cloud_free(&c);
+    }
+}
+
+static void run_file(const char *dir, const char *name, const char *suffix, const char *out,
+                     const tessel_smooth_recon_params *p)
+{
+    char path[1024], ref_path[1024];
+    snprintf(path, sizeof path, "%s/%s.%s.ply", dir, name, suffix);
+    snprintf(ref_path, sizeof ref_path, "%s/%s.gt.ply", dir, name);
+    tessel_cloud c;
+    tessel_mesh ref, m;
+    if (tessel_cloud_read(&c, path, NULL, NULL) != TESSEL_OK)
+        return;
+    if (tessel_mesh_read(&ref, ref_path, NULL, NULL) != TESSEL_OK) {
+        tessel_cloud_free(&c);
+        return;
+    }
+    tessel_smooth_recon_stats s;
+    double t0 = now();
+    tessel_status st = tessel_reconstruct_smooth(&c, p, NULL, &m, &s);
+    double secs = now() - t0;
+    if (st != TESSEL_OK) {
+        fprintf(stderr, "bench_pipeline: %s: %s\n", path, tessel_status_str(st));
+    } else {
+        char label[128];
+        snprintf(label, sizeof label, "%s.%s", name, suffix);
+        print_row(label, c.count, secs, &s);
+        tessel_check_params cp = tessel_check_params_default();
+        cp.reference = &ref;
+        tessel_mesh_report r;
+        if (tessel_mesh_check(&m, &cp, &r) == TESSEL_OK)
+            printf("%-22s F %.3f  chamfer %.3e  boundary %zu/%zu = %.3f%%  non-manifold "
+                   "e/v %zu/%zu  self-int %zu  components %zu  genus %ld\n",
+                   "", r.fscore, r.chamfer / r.reference_bbox_diagonal, r.boundary_edges,
+                   r.edges, r.edges ? 100.0 * (double)r.boundary_edges / (double)r.edges : 0.0,
+                   r.nonmanifold_edges, r.nonmanifold_vertices, r.self_intersections,
+                   r.components, r.genus);
+        if (out) {
+            char op[1024];
+            snprintf(op, sizeof op, "%s/%s.%s.smooth.ply", out, name, suffix);
+            tessel_mesh_write(&m, op, NULL, NULL);
+        }
+    }
+    tessel_mesh_free(&m);
+    tessel_mesh_free(&ref);
+    tessel_cloud_free(&c);
+}
+
+int main(int argc, char **argv)
+{
+    size_t max = 1000000;
+    const char *dir = NULL, *out = NULL;
+    int skip_sizes = 0;
+    tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--max") && i + 1 < argc)
+            max = (size_t)strtod(argv[++i], NULL);
+        else if (!strcmp(argv[i], "--threads") && i + 1 < argc)
+            p.threads = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--refine") && i + 1 < argc)
+            p.refine.rounds = (uint32_t)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--data") && i + 1 < argc)
+            dir = argv[++i];
+        else if (!strcmp(argv[i], "--out") && i + 1 < argc)
+            out = argv[++i];
+        else if (!strcmp(argv[i], "--skip-sizes"))
+            skip_sizes = 1;
+        else {
+            fprintf(stderr,
+                    "usage: bench_pipeline [--max N] [--threads T] [--refine R] [--data DIR] "
+                    "[--out DIR] [--skip-sizes]\n");
+            return 1;
+        }
+    }
+    if (!skip_sizes)
+        run_sizes(max, &p);
+    if (dir) {
+        printf("\nFiles in %s (quality against NAME.gt.ply; F-score at 1%% of its "
+               "diagonal)\n",
+               dir);
+        header();
+        static const char *const names[] = {"bunny", "elephant", "knot2"};
+        static const char *const suffixes[] = {"pd.n05", "pd"};
+        for (size_t k = 0; k < 3; k++)
+            for (size_t j = 0; j < 2; j++)
+                run_file(dir, names[k], suffixes[j], out, &p);
+    }
+    return 0;
+}
