@@ -13,6 +13,8 @@ typedef struct command {
 static const command commands[] = {
     {"info", cmd_info, "describe a point cloud or mesh file"},
     {"convert", cmd_convert, "convert between file formats"},
+    {"smooth", cmd_smooth, "denoise a cloud by robust local plane fitting"},
+    {"simplify", cmd_simplify, "reduce a cloud to one representative per cluster"},
     {"check", cmd_check, "check a mesh: manifold, orientation, intersections, distances"},
     {"render", cmd_render, "render a mesh or point cloud to PNG"},
 };
