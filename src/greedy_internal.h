@@ -1,0 +1,326 @@
+/* Private declarations of the greedy projection reconstruction (Gopi &
+ * Krishnan 2002), shared by its three files:
+ *   src/greedy.c        reference points, seeds, the main loop, the API
+ *   src/greedy_store.c  dexel array, triangle pool, fans, retirement, set-up
+ *   src/greedy_guard.c  exact intersection tests, the free-cone certificate
+ * Not installed. */
+#ifndef TESSEL_GREEDY_INTERNAL_H
+#define TESSEL_GREEDY_INTERNAL_H
+
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- point states (section 4: free, fringe, boundary, completed) ---- */
+enum {
+    ST_FREE = 0,     /* no triangle */
+    ST_FRINGE = 1,   /* has triangles, not yet a reference point */
+    ST_BOUNDARY = 2, /* was a reference point, fan still open */
+    ST_DONE = 3,     /* fan closed: completed */
+    ST_DEAD = 4,     /* left out (duplicate, isolated, ...) */
+    ST_MASK = 7,
+    ST_QUEUED = 8,   /* in the breadth-first queue */
+    ST_VISITS = 16   /* bits 4-5: times processed as a reference point */
+};
+
+#define NONE TESSEL_NONE
+/* Boundary points are looked at again when a neighbour changes their fan,
+ * at most this many times in all. */
+#define MAX_VISITS 3
+/* Triangles per batch sent to the sink. */
+#define OUT_BATCH 8192
+
+typedef struct gp_tri {
+    uint32_t v[3];    /* counter-clockwise seen from outside */
+    uint32_t next[3]; /* next held triangle in the list of v[k]; next[0] is
+                         the free-list link of an unused slot */
+} gp_tri;
+
+enum { TF_ALIVE = 1, TF_LONG = 2, TF_EXISTING = 4 };
+
+/* A point of the box around R. */
+typedef struct gp_box {
+    uint32_t idx;
+    float dinf;      /* L-infinity distance to R */
+    double rel[3];   /* position relative to R */
+} gp_box;
+
+/* A candidate neighbour of R in R's projection frame. */
+typedef struct gp_cand {
+    uint32_t idx;
+    uint8_t kept;    /* survives the pruning */
+    double x, y;     /* projection on R's plane (R at the origin) */
+    double key;      /* pseudo-angle, [0, 4), from the start of the sector */
+    double d2;       /* squared 3D distance to R */
+    double rel[3];
+} gp_cand;
+
+/* Cached box of a held triangle near R (for the guard). */
+typedef struct gp_gtri {
+    uint32_t t;
+    float lo[3], hi[3];
+} gp_gtri;
+
+/* R's free sector in its projection: new triangles lie in the cone from
+ * e's direction counter-clockwise to s's, the mesh around R in the rest.
+ * The projection is linear, so triangles whose images are disjoint (or meet
+ * only in the images of shared vertices and edges) do not meet in space:
+ * held triangles that provably stay out of the cone need no exact test. */
+typedef struct gp_cone {
+    int on;           /* 0: no certificate (a seed: every triangle is tested) */
+    int convex;       /* the free sector is under 180 degrees */
+    uint32_t R, e, s;
+    double e2[2], s2[2], bis[2];
+    double eu[2], su[2];  /* unit directions of e2, s2 */
+    double eps;       /* margin for the rounding of projections */
+} gp_cone;
+
+/* Projections of points on the current reference point's plane, cached by
+ * point index (direct-mapped; valid while stamp matches). */
+#define PCACHE 1024
+typedef struct gp_pcache {
+    uint32_t idx, stamp;
+    double x, y;
+    unsigned flags;       /* CONE_* tests the point passes */
+} gp_pcache;
+
+typedef struct gp {
+    /* input and parameters */
+    const tessel_cloud *cloud;
+    size_t n;
+    double mu, cos_alpha, beta, max_spacing;
+    int plane_axis;
+    const tessel_callbacks *cb;
+    const tessel_triangle_sink *sink;
+
+    /* points in dexel order */
+    float *xyz;
+    uint32_t *orig;       /* dexel order -> input index */
+    uint8_t *state;
+    uint32_t *head;       /* first held triangle at the point */
+    uint32_t *ls, *le;    /* ends of the point's fan: its link path runs
+                             ls -> ... -> le counter-clockwise */
+    uint32_t *label;      /* component label (union-find), NONE if unused */
+    float *maxe;          /* longest edge ever at the point (0: none) */
+
+    /* dexel array: columns over axes au, av; depth along ad */
+    int ad, au, av;
+    double glo[3];
+    double cell, inv_cell;
+    uint32_t nu, nv;
+    uint32_t *col;        /* nu*nv+1 column starts */
+
+    /* lengths (world units) */
+    double spacing;       /* mean nearest-neighbour distance */
+    double m_cap;         /* cap on m */
+    double m_floor;       /* floor on m (near-duplicates) */
+    double ell;           /* long-triangle threshold (max edge) */
+    double delta;         /* guard margin: ell / sqrt(3) */
+
+    /* retirement blocks */
+    double inv_block;
+    uint32_t bn[3];
+    uint32_t *blive;      /* live points in the block */
+    uint8_t *bdead;       /* dead blocks among the 27 around it */
+
+    /* triangle pool */
+    gp_tri *tri;
+    uint32_t *tstamp;
+    uint8_t *tflag;
+    size_t tcap, tused, talive;
+    uint32_t tfree;
+    size_t created_since_sweep, alive_after_sweep;
+    /* long triangles: hashed grid of cell edge 1 / lg_inv, every triangle
+     * listed in the cells its box overlaps */
+    double lg_inv;
+    uint64_t *lg_keys;    /* cell key + 1, 0 = empty slot */
+    uint32_t *lg_head;    /* first entry of the cell */
+    size_t lg_slots, lg_used;
+    uint32_t *lt_tri, *lt_next; /* entries */
+    size_t lt_cap, lt_used;
+    uint32_t lt_free;
+
+    /* breadth-first queue (ring) and seeds */
+    uint32_t *queue;
+    size_t qhead, qcount;
+    uint32_t *seed_order; /* dexel indices by increasing depth */
+    size_t seed_cursor;
+
+    /* components: union-find over labels */
+    uint32_t *uf;
+    size_t uf_count, uf_cap;
+
+    /* output batch */
+    uint32_t *out;
+    size_t out_count;
+
+    /* per-reference scratch */
+    gp_box *box;
+    size_t box_count, box_cap;
+    gp_cand *cand;
+    size_t cand_count, cand_cap;
+    uint32_t *seq;
+    size_t seq_count, seq_cap;
+    gp_gtri *gt;
+    size_t gt_count, gt_cap;
+    uint32_t stamp;
+    gp_cone cone;         /* of the current reference point */
+    gp_pcache *pc;        /* PCACHE entries */
+
+    tessel_recon_summary sum;
+    size_t processed;
+    long boundary_edges;
+} gp;
+
+typedef struct gp_frame {
+    double n[3], u[3], v[3];
+    double rho;        /* radius of the sphere of influence */
+    double reach;      /* every new triangle lies within reach of R */
+} gp_frame;
+
+/* ---- small helpers ---- */
+
+static inline int sgn(double x) { return (x > 0.0) - (x < 0.0); }
+
+static inline void pos(const gp *g, uint32_t i, double out[3])
+{
+    const float *p = g->xyz + 3 * (size_t)i;
+    out[0] = p[0];
+    out[1] = p[1];
+    out[2] = p[2];
+}
+
+static inline int st(const gp *g, uint32_t i) { return g->state[i] & ST_MASK; }
+static inline int is_live(const gp *g, uint32_t i)
+{
+    int s = st(g, i);
+    return s == ST_FREE || s == ST_FRINGE || s == ST_BOUNDARY;
+}
+
+/* Pseudo-angle of (x, y) in [0, 4): monotone in atan2 taken in [0, 2pi)
+ * (the paper's quadrant + sin^2 ordering does the same job). */
+static inline double pseudo_angle(double x, double y)
+{
+    double p = fabs(y) / (fabs(x) + fabs(y));
+    if (x >= 0.0)
+        return y >= 0.0 ? p : 4.0 - p;
+    return y >= 0.0 ? 2.0 - p : 2.0 + p;
+}
+
+static inline double wrap4(double k) { return k < 0.0 ? k + 4.0 : (k >= 4.0 ? k - 4.0 : k); }
+
+static inline tessel_status grow(void **p, size_t *cap, size_t need, size_t size)
+{
+    if (need <= *cap)
+        return TESSEL_OK;
+    return tsl_grow(p, cap, need, size);
+}
+
+static inline uint32_t grid_coord(double x, double lo, double inv, uint32_t count)
+{
+    double c = (x - lo) * inv;
+    if (!(c > 0.0))
+        return 0;
+    if (c >= (double)(count - 1))
+        return count - 1;
+    return (uint32_t)c;
+}
+
+static inline size_t block_of(const gp *g, const float p[3])
+{
+    uint32_t b[3];
+    for (int k = 0; k < 3; k++)
+        b[k] = grid_coord(p[k], g->glo[k], g->inv_block, g->bn[k]);
+    return ((size_t)b[2] * g->bn[1] + b[1]) * g->bn[0] + b[0];
+}
+
+static inline int tri_pos(const gp_tri *t, uint32_t v)
+{
+    return t->v[0] == v ? 0 : (t->v[1] == v ? 1 : 2);
+}
+
+static inline uint64_t lg_key(uint32_t x, uint32_t y, uint32_t z)
+{
+    return ((uint64_t)x << 42) | ((uint64_t)y << 21) | (uint64_t)z;
+}
+
+static inline size_t lg_find(const gp *g, uint64_t key)
+{
+    size_t mask = g->lg_slots - 1;
+    size_t h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 20) & mask;
+    while (g->lg_keys[h] && g->lg_keys[h] != key + 1)
+        h = (h + 1) & mask;
+    return h;
+}
+
+static inline double cross2(double ax, double ay, double bx, double by)
+{
+    return ax * by - ay * bx;
+}
+
+static inline void project_point(const gp *g, uint32_t R, const gp_frame *f, uint32_t i,
+                                 double xy[2])
+{
+    const float *p = g->xyz + 3 * (size_t)i, *r = g->xyz + 3 * (size_t)R;
+    double d[3] = {(double)p[0] - r[0], (double)p[1] - r[1], (double)p[2] - r[2]};
+    xy[0] = tsl_dot(d, f->u);
+    xy[1] = tsl_dot(d, f->v);
+}
+
+/* ---- fans ----
+ * The triangles at a point with an open fan have link path ls -> ... -> le:
+ * triangle (p, x, y) contributes the link edge x -> y. A new link segment
+ * a -> ... -> b (from one or two new triangles) keeps a single fan when it
+ * is prepended (b == ls), appended (a == le), or closes the fan (both, with
+ * at least three triangles in all), or when the point had no triangle. */
+enum { LINK_FAIL = 0, LINK_NEW, LINK_PREPEND, LINK_APPEND, LINK_CLOSE };
+
+/* ---- src/greedy_store.c ---- */
+
+/* Set-up (dexel array, spacing, duplicates, blocks, seed order) and
+ * release. */
+tessel_status tsl_gp_init(gp *g);
+void tsl_gp_free(gp *g);
+/* Imports params->existing (TESSEL_ERR_INVALID_ARG if not a manifold,
+ * consistently oriented mesh). */
+tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count);
+/* Points other than R, not dead, in the box of half-size half around R,
+ * into g->box. */
+tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half);
+/* Distance from point i to its nearest point (live ones only if
+ * live_only) with boxes doubling from start up to limit; INFINITY if none. */
+tessel_status tsl_gp_nearest(gp *g, uint32_t i, int live_only, double start, double limit,
+                             double *dist);
+/* Point i is no longer live (completed or left out). */
+void tsl_gp_point_settled(gp *g, uint32_t i);
+tessel_status tsl_gp_flush_out(gp *g);
+/* Retires held triangles nothing can reach any more (all: every one). */
+tessel_status tsl_gp_sweep(gp *g, int all);
+/* Some held triangle uses the directed edge x -> y. */
+int tsl_gp_edge_exists(const gp *g, uint32_t x, uint32_t y);
+void tsl_gp_tri_box(const gp *g, const uint32_t v[3], float lo[3], float hi[3]);
+/* Cells of the long-triangle grid that the box [lo, hi] overlaps. */
+void tsl_gp_lg_cells(const gp *g, const float lo[3], const float hi[3], uint32_t c0[3],
+                     uint32_t c1[3]);
+/* Adds triangle (a, b, c) (fans are updated by the caller). */
+tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int existing,
+                             uint32_t *out);
+/* Whether the link segment a -> ... -> b (edges edges) keeps p's fan single,
+ * and how (LINK_*); then applying it. */
+int tsl_gp_link_check(const gp *g, uint32_t p, uint32_t a, uint32_t b, int edges);
+void tsl_gp_link_apply(gp *g, uint32_t p, uint32_t a, uint32_t b, int how, int is_ref);
+
+/* ---- src/greedy_guard.c ---- */
+
+/* Exact: a, b, c collinear. */
+int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3]);
+/* Collects into g->gt the held triangles a new triangle within f->reach of
+ * R could meet; use_cone: skip those the free-cone certificate rules out
+ * (R must have a fan). */
+tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone);
+/* New triangle v meets no collected triangle beyond shared vertices/edges. */
+int tsl_gp_guard_ok(gp *g, const uint32_t v[3]);
+
+#endif /* TESSEL_GREEDY_INTERNAL_H */

@@ -1,0 +1,948 @@
+/* Storage for the greedy projection reconstruction (Gopi & Krishnan 2002):
+ * the dexel array of section 3 (columns of points sorted by depth, queried
+ * with axis-aligned boxes, section 4.1), the pool of held triangles with
+ * each point's list and fan (link path), the retirement blocks that decide
+ * when a triangle can leave memory (section 6: only triangles near the
+ * front are kept), the long-triangle grid, and the set-up. */
+#include "greedy_internal.h"
+
+/* ---- bucketing: the dexel array (section 3) ---- */
+
+typedef struct gp_sortrec {
+    float d, a, b;
+    uint32_t i;
+} gp_sortrec;
+
+static int cmp_sortrec(const void *pa, const void *pb)
+{
+    const gp_sortrec *x = pa, *y = pb;
+    if (x->d != y->d)
+        return x->d < y->d ? -1 : 1;
+    if (x->a != y->a)
+        return x->a < y->a ? -1 : 1;
+    if (x->b != y->b)
+        return x->b < y->b ? -1 : 1;
+    return x->i < y->i ? -1 : (x->i > y->i);
+}
+
+/* Sorts the cloud into columns of edge `cell` over the two axes other than
+ * the depth axis (dexel order) and fills xyz and orig. Within a column points
+ * go by depth, then the other coordinates, then input index, so exact
+ * duplicates end up adjacent and the order is deterministic. */
+static tessel_status build_dexels(gp *g, const double ext[3], double cell)
+{
+    const float *src = g->cloud->xyz;
+    size_t n = g->n;
+    /* Bound the column array: at most 4 columns per point (plus a floor). */
+    size_t max_cols = 4 * n + 4096;
+    for (;;) {
+        double cu = ext[g->au] / cell + 1.0, cv = ext[g->av] / cell + 1.0;
+        if (cu * cv <= (double)max_cols && cu < 4e9 && cv < 4e9)
+            break;
+        cell *= 1.5;
+    }
+    g->cell = cell;
+    g->inv_cell = 1.0 / cell;
+    g->nu = (uint32_t)(ext[g->au] / cell) + 1;
+    g->nv = (uint32_t)(ext[g->av] / cell) + 1;
+    size_t ncols = (size_t)g->nu * g->nv;
+    free(g->col);
+    g->col = tsl_calloc_array(ncols + 1, sizeof *g->col);
+    uint32_t *ord = tsl_alloc_array(n ? n : 1, sizeof *ord);
+    if (!g->col || !ord) {
+        free(ord);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t i = 0; i < n; i++) {
+        const float *p = src + 3 * i;
+        uint32_t iu = grid_coord(p[g->au], g->glo[g->au], g->inv_cell, g->nu);
+        uint32_t iv = grid_coord(p[g->av], g->glo[g->av], g->inv_cell, g->nv);
+        g->col[(size_t)iv * g->nu + iu + 1]++;
+    }
+    for (size_t c = 0; c < ncols; c++)
+        g->col[c + 1] += g->col[c];
+    size_t maxcol = 0;
+    for (size_t c = 0; c < ncols; c++)
+        if (g->col[c + 1] - g->col[c] > maxcol)
+            maxcol = g->col[c + 1] - g->col[c];
+    /* Place (stable: input order inside a column), using col[c] as cursor
+     * and shifting back afterwards. */
+    for (size_t i = 0; i < n; i++) {
+        const float *p = src + 3 * i;
+        uint32_t iu = grid_coord(p[g->au], g->glo[g->au], g->inv_cell, g->nu);
+        uint32_t iv = grid_coord(p[g->av], g->glo[g->av], g->inv_cell, g->nv);
+        ord[g->col[(size_t)iv * g->nu + iu]++] = (uint32_t)i;
+    }
+    for (size_t c = ncols; c > 0; c--)
+        g->col[c] = g->col[c - 1];
+    g->col[0] = 0;
+    gp_sortrec *rec = tsl_alloc_array(maxcol ? maxcol : 1, sizeof *rec);
+    if (!rec) {
+        free(ord);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t c = 0; c < ncols; c++) {
+        size_t s = g->col[c], e = g->col[c + 1];
+        for (size_t k = s; k < e; k++) {
+            const float *p = src + 3 * (size_t)ord[k];
+            rec[k - s].d = p[g->ad];
+            rec[k - s].a = p[g->au];
+            rec[k - s].b = p[g->av];
+            rec[k - s].i = ord[k];
+        }
+        if (e - s > 1)
+            qsort(rec, e - s, sizeof *rec, cmp_sortrec);
+        for (size_t k = s; k < e; k++) {
+            uint32_t i = rec[k - s].i;
+            g->orig[k] = i;
+            memcpy(g->xyz + 3 * k, src + 3 * (size_t)i, 3 * sizeof(float));
+        }
+    }
+    free(rec);
+    free(ord);
+    return TESSEL_OK;
+}
+
+/* Collects into g->box every point other than R that is not dead and lies
+ * in the axis-aligned box of half-size `half` around R (section 4.1, first
+ * stage of the distance criterion). Completed points whose triangles have
+ * all left memory cost nothing further. */
+tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half)
+{
+    double c[3];
+    pos(g, R, c);
+    const int ad = g->ad, au = g->au, av = g->av;
+    double lo_d = c[ad] - half, hi_d = c[ad] + half;
+    uint32_t iu0 = grid_coord(c[au] - half, g->glo[au], g->inv_cell, g->nu);
+    uint32_t iu1 = grid_coord(c[au] + half, g->glo[au], g->inv_cell, g->nu);
+    uint32_t iv0 = grid_coord(c[av] - half, g->glo[av], g->inv_cell, g->nv);
+    uint32_t iv1 = grid_coord(c[av] + half, g->glo[av], g->inv_cell, g->nv);
+    g->box_count = 0;
+    for (uint32_t iv = iv0; iv <= iv1; iv++) {
+        for (uint32_t iu = iu0; iu <= iu1; iu++) {
+            size_t col = (size_t)iv * g->nu + iu;
+            uint32_t s = g->col[col], e = g->col[col + 1];
+            if (s == e)
+                continue;
+            uint32_t lo = s, hi = e;
+            while (lo < hi) {
+                uint32_t mid = lo + (hi - lo) / 2;
+                if ((double)g->xyz[3 * (size_t)mid + ad] < lo_d)
+                    lo = mid + 1;
+                else
+                    hi = mid;
+            }
+            for (uint32_t i = lo; i < e; i++) {
+                const float *p = g->xyz + 3 * (size_t)i;
+                if ((double)p[ad] > hi_d)
+                    break;
+                int s_i = st(g, i);
+                if (i == R || s_i == ST_DEAD || (s_i == ST_DONE && g->head[i] == NONE))
+                    continue;
+                double r0 = p[0] - c[0], r1 = p[1] - c[1], r2 = p[2] - c[2];
+                double a0 = fabs(r0), a1 = fabs(r1), a2 = fabs(r2);
+                double dinf = a0 > a1 ? a0 : a1;
+                dinf = dinf > a2 ? dinf : a2;
+                if (dinf > half)
+                    continue;
+                if (g->box_count == g->box_cap &&
+                    grow((void **)&g->box, &g->box_cap, g->box_count + 1, sizeof *g->box))
+                    return TESSEL_ERR_NOMEM;
+                gp_box *b = &g->box[g->box_count++];
+                b->idx = i;
+                b->dinf = (float)dinf;
+                b->rel[0] = r0;
+                b->rel[1] = r1;
+                b->rel[2] = r2;
+            }
+        }
+    }
+    return TESSEL_OK;
+}
+
+/* Distance from point i to its nearest point (state filter: live points
+ * only when live_only) with positive distance, searching boxes that double
+ * from `start` up to `limit`. Returns INFINITY when there is none within
+ * limit. Uses g->box as scratch. */
+tessel_status tsl_gp_nearest(gp *g, uint32_t i, int live_only, double start, double limit,
+                             double *dist)
+{
+    *dist = INFINITY;
+    for (double h = start;; h *= 2.0) {
+        if (h > limit)
+            h = limit;
+        tessel_status s = tsl_gp_scan_box(g, i, h);
+        if (s != TESSEL_OK)
+            return s;
+        double best = INFINITY;
+        for (size_t k = 0; k < g->box_count; k++) {
+            const gp_box *b = &g->box[k];
+            if (live_only && !is_live(g, b->idx))
+                continue;
+            double d2 = tsl_dot(b->rel, b->rel);
+            if (d2 > 0.0 && d2 < best)
+                best = d2;
+        }
+        /* Found within the box's inscribed sphere: exact nearest. */
+        if (best <= h * h) {
+            *dist = sqrt(best);
+            return TESSEL_OK;
+        }
+        if (h >= limit) {
+            if (best <= limit * limit)
+                *dist = sqrt(best);
+            return TESSEL_OK;
+        }
+    }
+}
+
+/* ---- retirement blocks: a triangle leaves memory once no live point is
+ * near enough for a later triangle to reach it ---- */
+
+
+
+/* One more dead block around each of the 27 blocks near block b. */
+static void block_died(gp *g, size_t b)
+{
+    uint32_t bx = (uint32_t)(b % g->bn[0]);
+    uint32_t by = (uint32_t)(b / g->bn[0] % g->bn[1]);
+    uint32_t bz = (uint32_t)(b / g->bn[0] / g->bn[1]);
+    for (int dz = -1; dz <= 1; dz++)
+        for (int dy = -1; dy <= 1; dy++)
+            for (int dx = -1; dx <= 1; dx++) {
+                long x = (long)bx + dx, y = (long)by + dy, z = (long)bz + dz;
+                if (x < 0 || y < 0 || z < 0 || x >= (long)g->bn[0] || y >= (long)g->bn[1] ||
+                    z >= (long)g->bn[2])
+                    continue;
+                g->bdead[((size_t)z * g->bn[1] + (size_t)y) * g->bn[0] + (size_t)x]++;
+            }
+}
+
+/* Point i stops being live (completed or left out). */
+void tsl_gp_point_settled(gp *g, uint32_t i)
+{
+    size_t b = block_of(g, g->xyz + 3 * (size_t)i);
+    if (--g->blive[b] == 0)
+        block_died(g, b);
+}
+
+static tessel_status init_blocks(gp *g, const double ext[3], double width)
+{
+    for (;;) {
+        double total = 1.0;
+        for (int k = 0; k < 3; k++)
+            total *= ext[k] / width + 1.0;
+        if (total <= (double)((size_t)1 << 21))
+            break;
+        width *= 1.25;
+    }
+    g->inv_block = 1.0 / width;
+    size_t nb = 1;
+    for (int k = 0; k < 3; k++) {
+        g->bn[k] = (uint32_t)(ext[k] / width) + 1;
+        nb *= g->bn[k];
+    }
+    g->blive = tsl_calloc_array(nb, sizeof *g->blive);
+    g->bdead = tsl_calloc_array(nb, sizeof *g->bdead);
+    if (!g->blive || !g->bdead)
+        return TESSEL_ERR_NOMEM;
+    for (size_t i = 0; i < g->n; i++)
+        if (st(g, (uint32_t)i) != ST_DEAD)
+            g->blive[block_of(g, g->xyz + 3 * i)]++;
+    /* Neighbours outside the grid count as dead. */
+    for (size_t b = 0; b < nb; b++) {
+        uint32_t c[3] = {(uint32_t)(b % g->bn[0]), (uint32_t)(b / g->bn[0] % g->bn[1]),
+                         (uint32_t)(b / g->bn[0] / g->bn[1])};
+        int inside = 1;
+        for (int k = 0; k < 3; k++)
+            inside *= 1 + (c[k] > 0) + (c[k] + 1 < g->bn[k]);
+        g->bdead[b] = (uint8_t)(27 - inside);
+    }
+    for (size_t b = 0; b < nb; b++)
+        if (g->blive[b] == 0)
+            block_died(g, b);
+    return TESSEL_OK;
+}
+
+/* ---- triangle pool, fans and output ---- */
+
+tessel_status tsl_gp_flush_out(gp *g)
+{
+    if (g->out_count == 0)
+        return TESSEL_OK;
+    tessel_status s = g->sink->emit(g->sink->user_data, g->out, g->out_count);
+    g->out_count = 0;
+    return s;
+}
+
+/* Some held triangle uses the directed edge x -> y. */
+int tsl_gp_edge_exists(const gp *g, uint32_t x, uint32_t y)
+{
+    for (uint32_t t = g->head[x]; t != NONE;) {
+        const gp_tri *T = &g->tri[t];
+        int k = tri_pos(T, x);
+        if (T->v[(k + 1) % 3] == y)
+            return 1;
+        t = T->next[k];
+    }
+    return 0;
+}
+
+static size_t fan_size(const gp *g, uint32_t x)
+{
+    size_t c = 0;
+    for (uint32_t t = g->head[x]; t != NONE; t = g->tri[t].next[tri_pos(&g->tri[t], x)])
+        c++;
+    return c;
+}
+
+void tsl_gp_tri_box(const gp *g, const uint32_t v[3], float lo[3], float hi[3])
+{
+    const float *a = g->xyz + 3 * (size_t)v[0], *b = g->xyz + 3 * (size_t)v[1],
+                *c = g->xyz + 3 * (size_t)v[2];
+    for (int k = 0; k < 3; k++) {
+        float l = a[k], h = a[k];
+        l = b[k] < l ? b[k] : l;
+        h = b[k] > h ? b[k] : h;
+        l = c[k] < l ? c[k] : l;
+        h = c[k] > h ? c[k] : h;
+        lo[k] = l;
+        hi[k] = h;
+    }
+}
+
+/* ---- long triangles: those with an edge longer than ell can meet a new
+ * triangle without having a vertex in the box the guard looks at, so they
+ * are also listed in a hashed grid ---- */
+
+void tsl_gp_lg_cells(const gp *g, const float lo[3], const float hi[3], uint32_t c0[3],
+                     uint32_t c1[3])
+{
+    for (int k = 0; k < 3; k++) {
+        double a = (lo[k] - g->glo[k]) * g->lg_inv, b = (hi[k] - g->glo[k]) * g->lg_inv;
+        c0[k] = a > 0.0 ? (a < 2097151.0 ? (uint32_t)a : 2097151u) : 0u;
+        c1[k] = b > 0.0 ? (b < 2097151.0 ? (uint32_t)b : 2097151u) : 0u;
+    }
+}
+
+/* Doubles the table (or creates it), dropping cells whose list is empty. */
+static tessel_status lg_rehash(gp *g)
+{
+    size_t slots = g->lg_slots ? 2 * g->lg_slots : 1024;
+    uint64_t *ok = g->lg_keys;
+    uint32_t *oh = g->lg_head;
+    size_t os = g->lg_slots;
+    g->lg_keys = tsl_calloc_array(slots, sizeof *g->lg_keys);
+    g->lg_head = tsl_alloc_array(slots, sizeof *g->lg_head);
+    if (!g->lg_keys || !g->lg_head) {
+        free(g->lg_keys);
+        free(g->lg_head);
+        g->lg_keys = ok;
+        g->lg_head = oh;
+        return TESSEL_ERR_NOMEM;
+    }
+    g->lg_slots = slots;
+    g->lg_used = 0;
+    for (size_t i = 0; i < os; i++) {
+        if (!ok[i] || oh[i] == NONE)
+            continue;
+        size_t h = lg_find(g, ok[i] - 1);
+        g->lg_keys[h] = ok[i];
+        g->lg_head[h] = oh[i];
+        g->lg_used++;
+    }
+    free(ok);
+    free(oh);
+    return TESSEL_OK;
+}
+
+static tessel_status long_register(gp *g, uint32_t t)
+{
+    float lo[3], hi[3];
+    uint32_t c0[3], c1[3];
+    tsl_gp_tri_box(g, g->tri[t].v, lo, hi);
+    tsl_gp_lg_cells(g, lo, hi, c0, c1);
+    for (uint32_t z = c0[2]; z <= c1[2]; z++)
+        for (uint32_t y = c0[1]; y <= c1[1]; y++)
+            for (uint32_t x = c0[0]; x <= c1[0]; x++) {
+                tessel_status s;
+                if (2 * (g->lg_used + 1) > g->lg_slots && (s = lg_rehash(g)) != TESSEL_OK)
+                    return s;
+                uint64_t key = lg_key(x, y, z);
+                size_t h = lg_find(g, key);
+                if (!g->lg_keys[h]) {
+                    g->lg_keys[h] = key + 1;
+                    g->lg_head[h] = NONE;
+                    g->lg_used++;
+                }
+                uint32_t e = g->lt_free;
+                if (e != NONE) {
+                    g->lt_free = g->lt_next[e];
+                } else {
+                    if (g->lt_used == g->lt_cap) {
+                        size_t cap = g->lt_cap ? 2 * g->lt_cap : 1024;
+                        uint32_t *a = realloc(g->lt_tri, cap * sizeof *a);
+                        if (!a)
+                            return TESSEL_ERR_NOMEM;
+                        g->lt_tri = a;
+                        uint32_t *b = realloc(g->lt_next, cap * sizeof *b);
+                        if (!b)
+                            return TESSEL_ERR_NOMEM;
+                        g->lt_next = b;
+                        g->lt_cap = cap;
+                    }
+                    e = (uint32_t)g->lt_used++;
+                }
+                g->lt_tri[e] = t;
+                g->lt_next[e] = g->lg_head[h];
+                g->lg_head[h] = e;
+            }
+    return TESSEL_OK;
+}
+
+static void long_unregister(gp *g, uint32_t t)
+{
+    float lo[3], hi[3];
+    uint32_t c0[3], c1[3];
+    tsl_gp_tri_box(g, g->tri[t].v, lo, hi);
+    tsl_gp_lg_cells(g, lo, hi, c0, c1);
+    for (uint32_t z = c0[2]; z <= c1[2]; z++)
+        for (uint32_t y = c0[1]; y <= c1[1]; y++)
+            for (uint32_t x = c0[0]; x <= c1[0]; x++) {
+                size_t h = lg_find(g, lg_key(x, y, z));
+                if (!g->lg_keys[h])
+                    continue;
+                uint32_t *link = &g->lg_head[h];
+                while (*link != NONE && g->lt_tri[*link] != t)
+                    link = &g->lt_next[*link];
+                if (*link != NONE) {
+                    uint32_t e = *link;
+                    *link = g->lt_next[e];
+                    g->lt_next[e] = g->lt_free;
+                    g->lt_free = e;
+                }
+            }
+}
+
+static tessel_status tri_alloc(gp *g, uint32_t *out)
+{
+    uint32_t t = g->tfree;
+    if (t != NONE) {
+        g->tfree = g->tri[t].next[0];
+    } else {
+        if (g->tused == g->tcap) {
+            size_t cap = g->tcap ? 2 * g->tcap : 1024;
+            if (cap >= NONE)
+                return TESSEL_ERR_LIMIT;
+            gp_tri *nt = realloc(g->tri, cap * sizeof *nt);
+            if (!nt)
+                return TESSEL_ERR_NOMEM;
+            g->tri = nt;
+            uint32_t *ns = realloc(g->tstamp, cap * sizeof *ns);
+            if (!ns)
+                return TESSEL_ERR_NOMEM;
+            g->tstamp = ns;
+            uint8_t *nf = realloc(g->tflag, cap * sizeof *nf);
+            if (!nf)
+                return TESSEL_ERR_NOMEM;
+            g->tflag = nf;
+            g->tcap = cap;
+        }
+        t = (uint32_t)g->tused++;
+    }
+    g->tstamp[t] = 0;
+    g->tflag[t] = TF_ALIVE;
+    *out = t;
+    return TESSEL_OK;
+}
+
+/* Emits (unless it was given as existing) and frees held triangle t. */
+static tessel_status tri_retire(gp *g, uint32_t t)
+{
+    gp_tri *T = &g->tri[t];
+    if (!(g->tflag[t] & TF_EXISTING)) {
+        for (int k = 0; k < 3; k++)
+            g->out[3 * g->out_count + (size_t)k] = g->orig[T->v[k]];
+        if (++g->out_count == OUT_BATCH) {
+            tessel_status s = tsl_gp_flush_out(g);
+            if (s != TESSEL_OK)
+                return s;
+        }
+        g->sum.triangles++;
+    }
+    if (g->tflag[t] & TF_LONG)
+        long_unregister(g, t);
+    for (int k = 0; k < 3; k++) {
+        uint32_t v = T->v[k];
+        uint32_t *link = &g->head[v];
+        while (*link != t) {
+            gp_tri *U = &g->tri[*link];
+            link = &U->next[tri_pos(U, v)];
+        }
+        *link = T->next[k];
+    }
+    g->tflag[t] = 0;
+    T->next[0] = g->tfree;
+    g->tfree = t;
+    g->talive--;
+    return TESSEL_OK;
+}
+
+/* Retires every held triangle whose surroundings have no live point left. */
+tessel_status tsl_gp_sweep(gp *g, int all)
+{
+    for (size_t t = 0; t < g->tused; t++) {
+        if (!(g->tflag[t] & TF_ALIVE))
+            continue;
+        if (!all && g->bdead[block_of(g, g->xyz + 3 * (size_t)g->tri[t].v[0])] != 27)
+            continue;
+        tessel_status s = tri_retire(g, (uint32_t)t);
+        if (s != TESSEL_OK)
+            return s;
+    }
+    g->created_since_sweep = 0;
+    g->alive_after_sweep = g->talive;
+    return TESSEL_OK;
+}
+
+/* ---- components: union-find over labels ---- */
+
+static uint32_t uf_find(gp *g, uint32_t x)
+{
+    while (g->uf[x] != x) {
+        g->uf[x] = g->uf[g->uf[x]];
+        x = g->uf[x];
+    }
+    return x;
+}
+
+static tessel_status uf_new(gp *g, uint32_t *label)
+{
+    if (grow((void **)&g->uf, &g->uf_cap, g->uf_count + 1, sizeof *g->uf))
+        return TESSEL_ERR_NOMEM;
+    *label = (uint32_t)g->uf_count;
+    g->uf[g->uf_count] = (uint32_t)g->uf_count;
+    g->uf_count++;
+    return TESSEL_OK;
+}
+
+static void uf_union(gp *g, uint32_t a, uint32_t b)
+{
+    a = uf_find(g, a);
+    b = uf_find(g, b);
+    if (a != b)
+        g->uf[a < b ? b : a] = a < b ? a : b;
+}
+
+static void enqueue(gp *g, uint32_t i)
+{
+    if (g->state[i] & ST_QUEUED)
+        return;
+    g->state[i] |= ST_QUEUED;
+    g->queue[(g->qhead + g->qcount) % g->n] = i;
+    g->qcount++;
+}
+
+/* Links triangle (a, b, c) into the pool and the points' lists; counts
+ * boundary edges and joins components. Fans are updated by the caller. */
+tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int existing,
+                             uint32_t *out)
+{
+    uint32_t v[3] = {a, b, c};
+    for (int k = 0; k < 3; k++)
+        g->boundary_edges += tsl_gp_edge_exists(g, v[(k + 1) % 3], v[k]) ? -1 : 1;
+    uint32_t t;
+    tessel_status s = tri_alloc(g, &t);
+    if (s != TESSEL_OK)
+        return s;
+    gp_tri *T = &g->tri[t];
+    uint32_t lab = NONE;
+    for (int k = 0; k < 3; k++) {
+        T->v[k] = v[k];
+        T->next[k] = g->head[v[k]];
+        g->head[v[k]] = t;
+        if (g->label[v[k]] != NONE) {
+            if (lab == NONE)
+                lab = g->label[v[k]];
+            else
+                uf_union(g, lab, g->label[v[k]]);
+        }
+    }
+    if (lab == NONE && (s = uf_new(g, &lab)) != TESSEL_OK)
+        return s;
+    for (int k = 0; k < 3; k++)
+        if (g->label[v[k]] == NONE)
+            g->label[v[k]] = lab;
+    if (existing)
+        g->tflag[t] |= TF_EXISTING;
+    double pa[3], pb[3], pc[3], d[3];
+    pos(g, a, pa);
+    pos(g, b, pb);
+    pos(g, c, pc);
+    double l2[3];
+    tsl_sub(pa, pb, d);
+    l2[0] = tsl_dot(d, d); /* ab */
+    tsl_sub(pb, pc, d);
+    l2[1] = tsl_dot(d, d); /* bc */
+    tsl_sub(pc, pa, d);
+    l2[2] = tsl_dot(d, d); /* ca */
+    double e2 = fmax(l2[0], fmax(l2[1], l2[2]));
+    /* Rounded up so that it bounds the true length. */
+    float la = (float)(sqrt(fmax(l2[0], l2[2])) * (1.0 + 1e-6));
+    float lb = (float)(sqrt(fmax(l2[0], l2[1])) * (1.0 + 1e-6));
+    float lc = (float)(sqrt(fmax(l2[1], l2[2])) * (1.0 + 1e-6));
+    if (la > g->maxe[a])
+        g->maxe[a] = la;
+    if (lb > g->maxe[b])
+        g->maxe[b] = lb;
+    if (lc > g->maxe[c])
+        g->maxe[c] = lc;
+    if (e2 > g->ell * g->ell) {
+        g->tflag[t] |= TF_LONG;
+        if ((s = long_register(g, t)) != TESSEL_OK)
+            return s;
+    }
+    g->talive++;
+    g->created_since_sweep++;
+    if (g->talive > g->sum.peak_held_triangles)
+        g->sum.peak_held_triangles = g->talive;
+    if (out)
+        *out = t;
+    return TESSEL_OK;
+}
+
+int tsl_gp_link_check(const gp *g, uint32_t p, uint32_t a, uint32_t b, int edges)
+{
+    if (g->head[p] == NONE)
+        return LINK_NEW;
+    if (st(g, p) == ST_DONE)
+        return LINK_FAIL;
+    uint32_t s = g->ls[p], e = g->le[p];
+    if (b == s && a == e)
+        return fan_size(g, p) + (size_t)edges >= 3 ? LINK_CLOSE : LINK_FAIL;
+    if (b == s)
+        return LINK_PREPEND;
+    if (a == e)
+        return LINK_APPEND;
+    return LINK_FAIL;
+}
+
+/* Applies a checked link change to point p (not the reference point). */
+void tsl_gp_link_apply(gp *g, uint32_t p, uint32_t a, uint32_t b, int how, int is_ref)
+{
+    switch (how) {
+    case LINK_NEW:
+        g->ls[p] = a;
+        g->le[p] = b;
+        if (!is_ref && st(g, p) == ST_FREE) {
+            g->state[p] = (uint8_t)((g->state[p] & ~ST_MASK) | ST_FRINGE);
+            g->sum.points_used++;
+            enqueue(g, p);
+        } else if (is_ref && st(g, p) == ST_FREE) {
+            g->sum.points_used++;
+        }
+        break;
+    case LINK_PREPEND:
+        g->ls[p] = a;
+        break;
+    case LINK_APPEND:
+        g->le[p] = b;
+        break;
+    case LINK_CLOSE:
+        g->state[p] = (uint8_t)((g->state[p] & ~ST_MASK) | ST_DONE);
+        g->ls[p] = g->le[p] = NONE;
+        tsl_gp_point_settled(g, p);
+        return;
+    default:
+        return;
+    }
+    /* A boundary point whose fan a neighbour changed may close now. */
+    if (!is_ref && st(g, p) == ST_BOUNDARY && (g->state[p] >> 4) < MAX_VISITS)
+        enqueue(g, p);
+}
+
+/* ---- set-up ---- */
+
+void tsl_gp_free(gp *g)
+{
+    free(g->xyz);
+    free(g->orig);
+    free(g->state);
+    free(g->head);
+    free(g->ls);
+    free(g->le);
+    free(g->label);
+    free(g->maxe);
+    free(g->col);
+    free(g->blive);
+    free(g->bdead);
+    free(g->lg_keys);
+    free(g->lg_head);
+    free(g->tri);
+    free(g->tstamp);
+    free(g->tflag);
+    free(g->lt_tri);
+    free(g->lt_next);
+    free(g->queue);
+    free(g->seed_order);
+    free(g->uf);
+    free(g->out);
+    free(g->box);
+    free(g->cand);
+    free(g->seq);
+    free(g->gt);
+    free(g->pc);
+}
+
+static inline uint32_t depth_key(float f)
+{
+    uint32_t u;
+    memcpy(&u, &f, sizeof u);
+    return (u & 0x80000000u) ? ~u : (u | 0x80000000u);
+}
+
+/* Seed order: dexel indices by increasing depth (LSD radix sort, stable;
+ * g->queue serves as scratch). */
+static void order_seeds(gp *g)
+{
+    uint32_t *a = g->seed_order, *b = g->queue;
+    for (size_t i = 0; i < g->n; i++)
+        a[i] = (uint32_t)i;
+    for (int shift = 0; shift < 32; shift += 8) {
+        size_t count[257] = {0};
+        for (size_t i = 0; i < g->n; i++)
+            count[((depth_key(g->xyz[3 * (size_t)a[i] + g->ad]) >> shift) & 255) + 1]++;
+        for (int k = 0; k < 256; k++)
+            count[k + 1] += count[k];
+        for (size_t i = 0; i < g->n; i++)
+            b[count[(depth_key(g->xyz[3 * (size_t)a[i] + g->ad]) >> shift) & 255]++] = a[i];
+        uint32_t *t = a;
+        a = b;
+        b = t;
+    }
+    /* Four passes: the result is back in seed_order. */
+}
+
+/* Mean distance to the nearest other point, on an even sample. */
+static tessel_status estimate_spacing(gp *g, double *spacing)
+{
+    size_t k = g->n < 2048 ? g->n : 2048;
+    double sum = 0.0;
+    size_t used = 0;
+    double limit = 64.0 * g->cell;
+    for (size_t i = 0; i < k; i++) {
+        uint32_t idx = (uint32_t)((double)i * (double)g->n / (double)k);
+        double d;
+        tessel_status s = tsl_gp_nearest(g, idx, 0, 0.5 * g->cell, limit, &d);
+        if (s != TESSEL_OK)
+            return s;
+        if (d <= limit) {
+            sum += d;
+            used++;
+        }
+    }
+    *spacing = used ? sum / (double)used : 0.0;
+    return TESSEL_OK;
+}
+
+/* Imports params->existing: links the triangles, then derives every touched
+ * point's fan; fans that are not a single path or cycle, or edges used twice
+ * in one direction, make the input invalid. */
+tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count)
+{
+    uint32_t *inv = tsl_alloc_array(g->n, sizeof *inv);
+    if (!inv)
+        return TESSEL_ERR_NOMEM;
+    for (size_t i = 0; i < g->n; i++)
+        inv[g->orig[i]] = (uint32_t)i;
+    tessel_status s = TESSEL_OK;
+    for (size_t t = 0; t < count && s == TESSEL_OK; t++) {
+        uint32_t v[3];
+        for (int k = 0; k < 3; k++) {
+            uint32_t o = tris[3 * t + (size_t)k];
+            if (o >= g->n) {
+                s = TESSEL_ERR_INVALID_ARG;
+                break;
+            }
+            v[k] = inv[o];
+            if (st(g, v[k]) == ST_DEAD)
+                v[k] = g->ls[v[k]]; /* a duplicate: its kept twin */
+        }
+        if (s != TESSEL_OK)
+            break;
+        if (v[0] == v[1] || v[1] == v[2] || v[2] == v[0]) {
+            s = TESSEL_ERR_INVALID_ARG;
+            break;
+        }
+        s = tsl_gp_tri_add(g, v[0], v[1], v[2], 1, NULL);
+    }
+    free(inv);
+    if (s != TESSEL_OK)
+        return s;
+    for (size_t t = 0; t < g->tused; t++) {
+        for (int k = 0; k < 3; k++) {
+            uint32_t p = g->tri[t].v[k];
+            if (st(g, p) != ST_FREE)
+                continue;
+            /* Link edges x -> y of p's triangles; a path or a cycle? */
+            size_t edges = 0;
+            uint32_t start = NONE;
+            for (uint32_t u = g->head[p]; u != NONE;) {
+                const gp_tri *T = &g->tri[u];
+                int q = tri_pos(T, p);
+                uint32_t x = T->v[(q + 1) % 3];
+                int has_in = 0;
+                size_t outs = 0;
+                for (uint32_t w = g->head[p]; w != NONE;) {
+                    const gp_tri *W = &g->tri[w];
+                    int r = tri_pos(W, p);
+                    has_in |= W->v[(r + 2) % 3] == x;
+                    outs += W->v[(r + 1) % 3] == x;
+                    w = W->next[r];
+                }
+                if (outs > 1)
+                    return TESSEL_ERR_INVALID_ARG;
+                if (!has_in) {
+                    if (start != NONE)
+                        return TESSEL_ERR_INVALID_ARG; /* two fans */
+                    start = x;
+                }
+                edges++;
+                u = T->next[q];
+            }
+            /* Walk the link from start (or any edge for a cycle). */
+            uint32_t first = start;
+            if (first == NONE) {
+                const gp_tri *T = &g->tri[g->head[p]];
+                first = T->v[(tri_pos(T, p) + 1) % 3];
+            }
+            uint32_t x = first, last = first;
+            size_t walked = 0;
+            for (;;) {
+                uint32_t y = NONE;
+                for (uint32_t w = g->head[p]; w != NONE;) {
+                    const gp_tri *W = &g->tri[w];
+                    int r = tri_pos(W, p);
+                    if (W->v[(r + 1) % 3] == x)
+                        y = W->v[(r + 2) % 3];
+                    w = W->next[r];
+                }
+                if (y == NONE)
+                    break;
+                walked++;
+                last = y;
+                x = y;
+                if (x == first || walked > edges)
+                    break;
+            }
+            if (walked != edges)
+                return TESSEL_ERR_INVALID_ARG;
+            g->sum.points_used++;
+            if (start == NONE) {
+                if (edges < 3)
+                    return TESSEL_ERR_INVALID_ARG;
+                g->state[p] = (uint8_t)((g->state[p] & ~ST_MASK) | ST_DONE);
+                tsl_gp_point_settled(g, p);
+            } else {
+                g->ls[p] = start;
+                g->le[p] = last;
+                g->state[p] = (uint8_t)((g->state[p] & ~ST_MASK) | ST_FRINGE);
+                enqueue(g, p);
+            }
+        }
+    }
+    return TESSEL_OK;
+}
+
+tessel_status tsl_gp_init(gp *g)
+{
+    size_t n = g->n;
+    const float *src = g->cloud->xyz;
+    g->xyz = tsl_alloc_array(n, 3 * sizeof(float));
+    g->orig = tsl_alloc_array(n, sizeof *g->orig);
+    g->state = tsl_calloc_array(n, 1);
+    g->head = tsl_alloc_array(n, sizeof *g->head);
+    g->ls = tsl_alloc_array(n, sizeof *g->ls);
+    g->le = tsl_alloc_array(n, sizeof *g->le);
+    g->label = tsl_alloc_array(n, sizeof *g->label);
+    g->maxe = tsl_calloc_array(n, sizeof *g->maxe);
+    g->queue = tsl_alloc_array(n, sizeof *g->queue);
+    g->seed_order = tsl_alloc_array(n, sizeof *g->seed_order);
+    g->out = tsl_alloc_array(OUT_BATCH, 3 * sizeof *g->out);
+    g->pc = tsl_calloc_array(PCACHE, sizeof *g->pc);
+    if (!g->xyz || !g->orig || !g->state || !g->head || !g->ls || !g->le || !g->label ||
+        !g->queue || !g->seed_order || !g->out || !g->maxe || !g->pc)
+        return TESSEL_ERR_NOMEM;
+    memset(g->head, 0xff, n * sizeof *g->head);
+    memset(g->ls, 0xff, n * sizeof *g->ls);
+    memset(g->le, 0xff, n * sizeof *g->le);
+    memset(g->label, 0xff, n * sizeof *g->label);
+    g->tfree = NONE;
+    g->lt_free = NONE;
+
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; i++)
+        for (int k = 0; k < 3; k++) {
+            double x = src[3 * i + (size_t)k];
+            if (!isfinite(x))
+                return TESSEL_ERR_INVALID_ARG;
+            lo[k] = fmin(lo[k], x);
+            hi[k] = fmax(hi[k], x);
+        }
+    double ext[3];
+    for (int k = 0; k < 3; k++) {
+        g->glo[k] = lo[k];
+        ext[k] = hi[k] - lo[k];
+    }
+    g->ad = 0;
+    for (int k = 1; k < 3; k++)
+        if (ext[k] > ext[g->ad])
+            g->ad = k;
+    g->au = (g->ad + 1) % 3;
+    g->av = (g->ad + 2) % 3;
+    double emax = fmax(ext[0], fmax(ext[1], ext[2]));
+    if (!(emax > 0.0))
+        emax = 1.0;
+    double area = ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0];
+    if (!(area > 0.0))
+        area = emax * emax;
+    double cell = 3.0 * sqrt(area / (double)n);
+    if (!(cell > 0.0))
+        cell = emax;
+    tessel_status s = build_dexels(g, ext, cell);
+    if (s != TESSEL_OK)
+        return s;
+    double spacing;
+    if ((s = estimate_spacing(g, &spacing)) != TESSEL_OK)
+        return s;
+    if (!(spacing > 0.0))
+        spacing = g->cell / 3.0;
+    if (g->cell < 2.0 * spacing || g->cell > 5.0 * spacing) {
+        if ((s = build_dexels(g, ext, 3.0 * spacing)) != TESSEL_OK)
+            return s;
+    }
+    g->spacing = spacing;
+    g->sum.spacing = spacing;
+    g->m_cap = g->max_spacing * spacing;
+    g->m_floor = 0.05 * spacing;
+    g->ell = 3.0 * spacing;
+    g->delta = g->ell / sqrt(3.0);
+    g->lg_inv = 1.0 / (2.0 * (g->mu * spacing + g->delta));
+
+    /* Exact duplicates (adjacent in dexel order): keep the first. */
+    size_t ncols = (size_t)g->nu * g->nv;
+    for (size_t c = 0; c < ncols; c++)
+        for (uint32_t i = g->col[c] + 1; i < g->col[c + 1]; i++) {
+            const float *p = g->xyz + 3 * (size_t)i, *q = p - 3;
+            if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2]) {
+                uint32_t keep = st(g, i - 1) == ST_DEAD ? g->ls[i - 1] : i - 1;
+                g->state[i] = ST_DEAD;
+                g->ls[i] = keep;
+                g->sum.left_duplicate++;
+            }
+        }
+    if ((s = init_blocks(g, ext, 4.0 * g->mu * g->m_cap + 2.0 * g->delta)) != TESSEL_OK)
+        return s;
+    order_seeds(g);
+    return TESSEL_OK;
+}
