@@ -98,6 +98,9 @@ int cmd_check(int argc, char **argv);
 int cmd_render(int argc, char **argv);
 int cmd_smooth(int argc, char **argv);
 int cmd_simplify(int argc, char **argv);
+/* tessel reconstruct IN OUT: dispatches on --mode / --method; the default
+ * is the greedy projection (tools/cmd_reconstruct.c). */
+int cmd_reconstruct(int argc, char **argv);
 /* tessel reconstruct IN OUT --mode height|range|grid (fixed-plane mode);
  * argv[0] is "reconstruct". */
 int cmd_reconstruct_fixed(int argc, char **argv);
