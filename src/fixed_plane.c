@@ -1367,6 +1367,21 @@ static void fp_range_frame(const tessel_cloud *cloud, const double vp[3], fp_fra
     free(hit);
 }
 
+/* A point in the dexel frame: first its map (s, t) and depth; once the
+ * array is sized, its dexel and its position (u, v) inside it (0..65535
+ * each way), computed once for the bucketing, the representatives and the
+ * filling. The depth stays in place. */
+typedef union fp_mapped {
+    struct {
+        float s, t, depth;
+    } st;
+    struct {
+        uint32_t id;   /* dexel, TESSEL_NONE for an unmapped point */
+        uint16_t u, v;
+        float depth;
+    } dx;
+} fp_mapped;
+
 typedef struct fp_dexels {
     uint32_t w, h;
     int wrap_c;
@@ -1404,20 +1419,6 @@ static inline uint32_t fp_dexel_of(const fp_dexels *dx, float inv0, float inv1, 
     return (uint32_t)((uint64_t)r * dx->w + (uint64_t)c);
 }
 
-/* Position (u, v) in [0, 1]^2 of a mapped point inside its known dexel k. */
-static inline void fp_uv_in(const fp_dexels *dx, float inv0, float inv1, size_t k, float s,
-                            float t, float *u, float *v)
-{
-    float fu = (s - dx->lo[0]) * inv0 - (float)(k % dx->w);
-    float fv = (t - dx->lo[1]) * inv1 - (float)(k / dx->w);
-    if (dx->wrap_c) /* a point just below phi = 0 sits in the last column */
-        fu = fu < -0.5f * (float)dx->w ? fu + (float)dx->w
-           : fu > 0.5f * (float)dx->w  ? fu - (float)dx->w
-                                       : fu;
-    *u = fu < 0.0f ? 0.0f : fu > 1.0f ? 1.0f : fu;
-    *v = fv < 0.0f ? 0.0f : fv > 1.0f ? 1.0f : fv;
-}
-
 /* Squared distance, in world units (height) or radians (range), from a
  * point at (u, v) in dexel (r + dr, c + dc) to the centre of dexel (r, c). */
 static inline double fp_centre_d2(const fp_dexels *dx, float u, float v, int dr, int dc)
@@ -1429,12 +1430,16 @@ static inline double fp_centre_d2(const fp_dexels *dx, float u, float v, int dr,
 
 /* Where the points of each dexel are: dexel k holds points
  * order[k == 0 ? 0 : start[k-1] .. start[k]) (after the scatter, start[k]
- * is the end of dexel k); map holds (s, t, depth) per point. */
+ * is the end of dexel k); map holds each point's dexel and position. */
 typedef struct fp_buckets {
-    const float *map;
+    const fp_mapped *map;
     uint32_t *start, *order;
-    float inv0, inv1;
 } fp_buckets;
+
+static inline double fp_centre_d2q(const fp_dexels *dx, const fp_mapped *m, int dr, int dc)
+{
+    return fp_centre_d2(dx, m->dx.u * (1.0f / 65535.0f), m->dx.v * (1.0f / 65535.0f), dr, dc);
+}
 
 /* A sampling gap of one dexel should not become a hole: an empty dexel
  * next to dexels holding spare points (not their representative) takes the
@@ -1469,18 +1474,12 @@ static tessel_status fp_fill_empty(fp_dexels *dx, fp_buckets *bk)
                     uint32_t b = j == 0 ? 0 : bk->start[j - 1], e = bk->start[j];
                     if (e - b < 2)
                         continue;
-                    double limit = INFINITY;
-                    float u, v;
-                    const float *m = bk->map + 3 * (size_t)dx->rep[j];
-                    fp_uv_in(dx, bk->inv0, bk->inv1, j, m[0], m[1], &u, &v);
-                    limit = fp_centre_d2(dx, u, v, dr, dc);
+                    double limit = fp_centre_d2q(dx, &bk->map[dx->rep[j]], dr, dc);
                     for (uint32_t q = b; q < e; q++) {
                         uint32_t i = bk->order[q];
                         if (i == TESSEL_NONE || i == dx->rep[j])
                             continue;
-                        m = bk->map + 3 * (size_t)i;
-                        fp_uv_in(dx, bk->inv0, bk->inv1, j, m[0], m[1], &u, &v);
-                        double d2 = fp_centre_d2(dx, u, v, dr, dc);
+                        double d2 = fp_centre_d2q(dx, &bk->map[i], dr, dc);
                         if (!(d2 < limit))
                             continue;
                         if (d2 < best || (d2 == best && i < *pick)) {
@@ -1534,26 +1533,25 @@ static uint32_t fp_representative(const fp_dexels *dx, fp_pair *a, size_t n)
 
 /* Buckets the mapped points into the w x h dexels (a stable counting sort
  * of point indices) and picks each dexel's representative. */
-static tessel_status fp_bucket(const float *map, size_t n, fp_dexels *dx, int nt,
+static tessel_status fp_bucket(const fp_mapped *map, size_t n, fp_dexels *dx, int nt,
                                const tessel_callbacks *cb)
 {
     size_t cells;
     if (!tsl_mul_size(dx->w, dx->h, &cells) || cells >= UINT32_MAX)
         return TESSEL_ERR_LIMIT;
-    fp_buckets bk = {map, NULL, NULL, (float)(1.0 / dx->cell[0]), (float)(1.0 / dx->cell[1])};
+    fp_buckets bk = {map, NULL, NULL};
     bk.start = tsl_calloc_array(cells + 1, sizeof(uint32_t));
     dx->rep = tsl_alloc_array(cells, sizeof(uint32_t));
     if (!bk.start || !dx->rep) {
         free(bk.start);
         return TESSEL_ERR_NOMEM;
     }
-    float u, v;
     size_t valid = 0;
     for (size_t i = 0; i < n; i++) {
-        const float *m = map + 3 * i;
-        if (m[0] != m[0])
+        uint32_t id = map[i].dx.id;
+        if (id == TESSEL_NONE)
             continue;
-        bk.start[fp_dexel_of(dx, bk.inv0, bk.inv1, m[0], m[1], &u, &v) + 1]++;
+        bk.start[id + 1]++;
         valid++;
     }
     uint32_t most = 0;
@@ -1567,11 +1565,9 @@ static tessel_status fp_bucket(const float *map, size_t n, fp_dexels *dx, int nt
         return TESSEL_ERR_NOMEM;
     }
     for (size_t i = 0; i < n; i++) {
-        const float *m = map + 3 * i;
-        if (m[0] != m[0])
-            continue;
-        bk.order[bk.start[fp_dexel_of(dx, bk.inv0, bk.inv1, m[0], m[1], &u, &v)]++] =
-            (uint32_t)i;
+        uint32_t id = map[i].dx.id;
+        if (id != TESSEL_NONE)
+            bk.order[bk.start[id]++] = (uint32_t)i;
     }
     tessel_status status = tsl_progress(cb, "dexels", 0.7);
     uint32_t *rep = dx->rep;
@@ -1584,20 +1580,18 @@ static tessel_status fp_bucket(const float *map, size_t n, fp_dexels *dx, int nt
 #pragma omp for schedule(dynamic, 256)
         for (int64_t k = 0; k < (int64_t)cells; k++) {
             uint32_t b = k == 0 ? 0 : bk.start[k - 1], e = bk.start[k];
-            rep[k] = TESSEL_NONE;
-            if (b == e)
+            rep[k] = b == e ? TESSEL_NONE : bk.order[b];
+            if (e - b < 2) {
+                reps += b < e;
                 continue;
+            }
             if (!buf) {
                 failed++;
                 continue;
             }
             for (uint32_t q = b; q < e; q++) {
                 uint32_t i = bk.order[q];
-                const float *m = map + 3 * (size_t)i;
-                float uu, vv;
-                fp_uv_in(dx, bk.inv0, bk.inv1, (size_t)k, m[0], m[1], &uu, &vv);
-                buf[q - b] = (fp_pair){m[2], i, (uint16_t)(uu * 65535.0f + 0.5f),
-                                       (uint16_t)(vv * 65535.0f + 0.5f)};
+                buf[q - b] = (fp_pair){map[i].dx.depth, i, map[i].dx.u, map[i].dx.v};
             }
             rep[k] = fp_representative(dx, buf, e - b);
             reps++;
@@ -1615,10 +1609,31 @@ static tessel_status fp_bucket(const float *map, size_t n, fp_dexels *dx, int nt
     return status;
 }
 
+/* Turns every map entry (s, t) into its dexel and position (see
+ * fp_mapped). */
+static void fp_assign(fp_mapped *map, size_t n, const fp_dexels *dx, int nt)
+{
+    const float inv0 = (float)(1.0 / dx->cell[0]), inv1 = (float)(1.0 / dx->cell[1]);
+    (void)nt;
+#pragma omp parallel for schedule(static) num_threads(nt)
+    for (int64_t i = 0; i < (int64_t)n; i++) {
+        fp_mapped *m = &map[i];
+        float s = m->st.s, t = m->st.t, u, v;
+        if (s != s) {
+            m->dx.id = TESSEL_NONE;
+            continue;
+        }
+        uint32_t id = fp_dexel_of(dx, inv0, inv1, s, t, &u, &v);
+        m->dx.id = id;
+        m->dx.u = (uint16_t)(u * 65535.0f + 0.5f);
+        m->dx.v = (uint16_t)(v * 65535.0f + 0.5f);
+    }
+}
+
 /* Chooses the array size: given, from a cell size, or so that occupied
  * dexels hold points_per_dexel points on average (the occupied area is
  * measured on a coarse probe grid filled with a sample). */
-static tessel_status fp_size(const float *map, size_t n, int kind, const float lo[2],
+static tessel_status fp_size(const fp_mapped *map, size_t n, int kind, const float lo[2],
                              const float hi[2], const tessel_fixed_plane_params *p,
                              size_t valid, int full_circle, fp_dexels *dx)
 {
@@ -1641,10 +1656,10 @@ static tessel_status fp_size(const float *map, size_t n, int kind, const float l
         double ps = ext[0] > 0 ? ext[0] / PROBE : 1.0, pt = ext[1] > 0 ? ext[1] / PROBE : 1.0;
         size_t step = fp_sample_step(n), m = 0;
         for (size_t i = 0; i < n; i += step) {
-            const float *q = map + 3 * i;
-            if (q[0] != q[0])
+            const fp_mapped *q = &map[i];
+            if (q->st.s != q->st.s)
                 continue;
-            int a = (int)((q[0] - lo[0]) / ps), b = (int)((q[1] - lo[1]) / pt);
+            int a = (int)((q->st.s - lo[0]) / ps), b = (int)((q->st.t - lo[1]) / pt);
             a = a < 0 ? 0 : a >= PROBE ? PROBE - 1 : a;
             b = b < 0 ? 0 : b >= PROBE ? PROBE - 1 : b;
             occ[(size_t)b * PROBE + a] = 1;
@@ -1694,12 +1709,12 @@ static tessel_status fp_size(const float *map, size_t n, int kind, const float l
     return TESSEL_OK;
 }
 
-/* Maps every point once: map[3i..3i+2] = (s, t, depth), s = NaN for a
- * point that cannot be mapped; returns the number mapped and their
+/* Maps every point once: map[i] = (s, t, depth), s = NaN for a point
+ * that cannot be mapped; returns the number mapped and their
  * bounding box (parallel min/max are exact: no dependence on the thread
  * count). */
-static size_t fp_map_all(const tessel_cloud *cloud, const fp_frame *f, float *map, float lo[2],
-                         float hi[2], int nt)
+static size_t fp_map_all(const tessel_cloud *cloud, const fp_frame *f, fp_mapped *map,
+                         float lo[2], float hi[2], int nt)
 {
     float l0 = FLT_MAX, l1 = FLT_MAX, h0 = -FLT_MAX, h1 = -FLT_MAX;
     size_t valid = 0;
@@ -1708,15 +1723,15 @@ static size_t fp_map_all(const tessel_cloud *cloud, const fp_frame *f, float *ma
     reduction(+ : valid) num_threads(nt)
     for (int64_t i = 0; i < (int64_t)cloud->count; i++) {
         float s, t, d;
-        float *m = map + 3 * (size_t)i;
+        fp_mapped *m = &map[i];
         if (!fp_map(f, cloud->xyz + 3 * (size_t)i, &s, &t, &d)) {
-            m[0] = NAN;
-            m[1] = m[2] = 0.0f;
+            m->st.s = NAN;
+            m->st.t = m->st.depth = 0.0f;
             continue;
         }
-        m[0] = s;
-        m[1] = t;
-        m[2] = d;
+        m->st.s = s;
+        m->st.t = t;
+        m->st.depth = d;
         valid++;
         l0 = s < l0 ? s : l0;
         h0 = s > h0 ? s : h0;
@@ -1913,7 +1928,7 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
         status = tsl_progress(callbacks, "dexels", 0.0);
         if (status != TESSEL_OK)
             return status;
-        float *map = tsl_alloc_array(cloud->count, 3 * sizeof(float));
+        fp_mapped *map = tsl_alloc_array(cloud->count, sizeof(fp_mapped));
         if (!map)
             return TESSEL_ERR_NOMEM;
         float lo[2], hi[2];
@@ -1937,8 +1952,10 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
         dx.wrap_c = full;
         dx.lo[0] = lo[0];
         dx.lo[1] = lo[1];
-        if (status == TESSEL_OK)
+        if (status == TESSEL_OK) {
+            fp_assign(map, cloud->count, &dx, x.threads);
             status = fp_bucket(map, cloud->count, &dx, x.threads, callbacks);
+        }
         free(map);
         if (status != TESSEL_OK) {
             free(dx.rep);
