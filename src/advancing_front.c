@@ -44,8 +44,10 @@
 
 #define NONE TESSEL_NONE
 #define MAX_K 64
-/* Holes with more edges are never closed. */
+/* Holes with more edges are never closed; up to DP_HOLE_EDGES they get a
+ * minimum-area triangulation first. */
 #define MAX_HOLE_EDGES 4096
+#define DP_HOLE_EDGES 128
 /* d_x, the local spacing of (iii): mean distance to this many nearest
  * distinct neighbours. */
 #define SPACING_NEIGHBOURS 4
@@ -1696,6 +1698,158 @@ static bool small_hole(af *s, uint32_t id, size_t *len)
     return 2.0 * tsl_norm(area) / perimeter <= s->max_hole_radius * spacing / (double)n;
 }
 
+/* Dihedral measure between two unit normals: 1 - cos (0 when flat). */
+static inline double bend(const double a[3], const double b[3]) { return 1.0 - tsl_dot(a, b); }
+
+/* Closes the hole through edge id (n edges) with the triangulation of its
+ * loop of least area (by_area; Barequet & Sharir 1995) or that minimises
+ * the largest dihedral angle, then the area (Liepa 2003, "Filling holes in
+ * meshes"): a dynamic programme over the loop's polygon in O(n^3). It is
+ * kept only when no diagonal exists already and every triangle is valid
+ * (exact intersection tests against the mesh and each other, folds up to
+ * LAST_FOLD_DEG). *done tells whether it closed. */
+static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bool *done)
+{
+    *done = false;
+    if (n < 3 || n > DP_HOLE_EDGES)
+        return TESSEL_OK;
+    size_t nn = n * n;
+    uint32_t *v = tsl_alloc_array(n, sizeof *v);
+    double *side = tsl_alloc_array(3 * n, sizeof *side); /* mesh normal across loop edge i */
+    double *worst = tsl_alloc_array(nn, sizeof *worst);
+    double *area = tsl_alloc_array(nn, sizeof *area);
+    double *normal = tsl_alloc_array(3 * nn, sizeof *normal);
+    uint32_t *split = tsl_alloc_array(nn, sizeof *split);
+    af_tri *tris = tsl_alloc_array(n, sizeof *tris);
+    uint32_t *stack = tsl_alloc_array(2 * n, sizeof *stack);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!v || !side || !worst || !area || !normal || !split || !tris || !stack)
+        goto done;
+    st = TESSEL_OK;
+    uint32_t e = id;
+    for (size_t i = 0; i < n; i++, e = s->e[e].next) {
+        v[i] = s->e[e].from;
+        for (int c = 0; c < 3; c++)
+            side[3 * i + c] = s->ti[s->e[e].tri].n[c];
+    }
+    /* Entry (i, k), k > i: the polygon v_i .. v_k closed by the diagonal
+     * (i, k): its worst bend and area, and the normal of its triangle on
+     * (i, k). worst is INFINITY when (i, k) is an edge of the mesh already
+     * (two triangles on it would be three). */
+    for (size_t i = 0; i + 1 < n; i++) {
+        worst[i * n + i + 1] = 0.0;
+        area[i * n + i + 1] = 0.0;
+        for (int c = 0; c < 3; c++)
+            normal[3 * (i * n + i + 1) + c] = side[3 * i + c];
+    }
+    for (size_t gap = 2; gap < n; gap++)
+        for (size_t i = 0; i + gap < n; i++) {
+            size_t k = i + gap, ik = i * n + k;
+            double best_w = INFINITY, best_a = INFINITY, best_n[3] = {0.0, 0.0, 1.0};
+            uint32_t arg = 0;
+            bool diagonal = !(i == 0 && k == n - 1);
+            if (!diagonal || !edge_exists(s, v[i], v[k])) {
+                double pi[3], pk[3];
+                point(s, v[i], pi);
+                point(s, v[k], pk);
+                for (size_t m = i + 1; m < k; m++) {
+                    size_t im = i * n + m, mk = m * n + k;
+                    double w = by_area ? 0.0 : dmax(worst[im], worst[mk]);
+                    if (!(w <= best_w))
+                        continue;
+                    /* Triangle (v_k, v_m, v_i). */
+                    double pm[3], a[3], b[3], tn[3];
+                    point(s, v[m], pm);
+                    tsl_sub(pm, pk, a);
+                    tsl_sub(pi, pk, b);
+                    tsl_cross(a, b, tn);
+                    double twice = tsl_norm(tn);
+                    if (!(twice > 0.0))
+                        continue;
+                    for (int c = 0; c < 3; c++)
+                        tn[c] /= twice;
+                    if (!by_area) {
+                        w = dmax(w, dmax(bend(tn, normal + 3 * im), bend(tn, normal + 3 * mk)));
+                        if (!diagonal)
+                            w = dmax(w, bend(tn, side + 3 * (n - 1)));
+                    }
+                    double ar = area[im] + area[mk] + 0.5 * twice;
+                    if (w < best_w - 1e-9 || (w <= best_w + 1e-9 && ar < best_a)) {
+                        best_w = w;
+                        best_a = ar;
+                        arg = (uint32_t)m;
+                        for (int c = 0; c < 3; c++)
+                            best_n[c] = tn[c];
+                    }
+                }
+            }
+            worst[ik] = best_w;
+            area[ik] = best_a;
+            split[ik] = arg;
+            for (int c = 0; c < 3; c++)
+                normal[3 * ik + c] = best_n[c];
+        }
+    if (!isfinite(worst[n - 1]))
+        goto done;
+    /* The triangles, reversed against the loop so that they share its
+     * edges in the opposite direction: (v_k, v_m, v_i). */
+    size_t nt = 0, top = 0;
+    stack[top++] = 0;
+    stack[top++] = (uint32_t)(n - 1);
+    while (top) {
+        size_t k = stack[--top], i = stack[--top];
+        if (k < i + 2)
+            continue;
+        size_t m = split[i * n + k];
+        af_tri *x = &tris[nt++];
+        if (!make_tri(s, v[k], v[m], v[i], x))
+            goto done;
+        x->cos_fold = s->cos_last_fold;
+        x->exact_only = true;
+        stack[top++] = (uint32_t)i;
+        stack[top++] = (uint32_t)m;
+        stack[top++] = (uint32_t)m;
+        stack[top++] = (uint32_t)k;
+    }
+    for (size_t a = 0; a < nt; a++) {
+        bool ok;
+        if ((st = check_triangle(s, &tris[a], NULL, &ok)))
+            goto done;
+        if (!ok)
+            goto done;
+        const double *pa[3] = {tris[a].p[0], tris[a].p[1], tris[a].p[2]};
+        for (size_t b = a + 1; b < nt; b++) {
+            const double *pb[3] = {tris[b].p[0], tris[b].p[1], tris[b].p[2]};
+            if (tsl_triangles_intersect(tris[a].v, pa, tris[b].v, pb))
+                goto done;
+        }
+    }
+    for (size_t a = 0; a < nt; a++) {
+        uint32_t t;
+        if ((st = add_triangle(s, tris[a].v[0], tris[a].v[1], tris[a].v[2], &t)))
+            goto done;
+    }
+    e = id;
+    for (size_t i = 0; i < n; i++) {
+        uint32_t next = s->e[e].next;
+        s->e[e].state = EDGE_CLOSED;
+        s->vin[v[i]] = s->vout[v[i]] = NONE;
+        e = next;
+    }
+    s->stats.hole_triangles += nt;
+    *done = true;
+done:
+    free(v);
+    free(side);
+    free(worst);
+    free(area);
+    free(normal);
+    free(split);
+    free(tris);
+    free(stack);
+    return st;
+}
+
 /* Closes the hole through edge id (len edges) by clipping ears, the
  * sharpest corner first, each passing the closing checks (tiny holes: any
  * valid ear); stops at the first state with no valid ear. */
@@ -1786,7 +1940,12 @@ static tessel_status fill_holes(af *s)
         size_t len;
         if (!small_hole(s, (uint32_t)i, &len))
             continue;
-        tessel_status st = fill_hole(s, (uint32_t)i, len);
+        bool done;
+        tessel_status st = fill_hole_dp(s, (uint32_t)i, len, true, &done);
+        if (!st && !done)
+            st = fill_hole_dp(s, (uint32_t)i, len, false, &done);
+        if (!st && !done)
+            st = fill_hole(s, (uint32_t)i, len);
         if (st)
             return st;
     }
