@@ -5,8 +5,10 @@
  * three runs. bench/bench_nanoflann.cpp measures nanoflann on the same
  * data; bench/run_neighbours.sh runs both and prints the comparison.
  *
- * Usage: bench_kdtree [--max-n N] [--queries Q] [FILE.ply...]
- * Queries are the first min(n, Q) points of the cloud (Q = 10^6 default).
+ * Usage: bench_kdtree [--max-n N | --n N] [--queries Q] [FILE.ply...]
+ * Sizes 10^4, 10^5, ... up to N (10^7), or only N with --n. Queries are the
+ * first min(n, Q) points of the cloud (Q = 10^6 default), in the cloud's
+ * order (random for the torus, scan order for the files).
  * Prints a table, and one "RESULT" line per data set for the script. */
 #include "tessel.h"
 
@@ -122,15 +124,18 @@ static int run(const char *name, const float *xyz, size_t n, size_t max_queries)
 
 int main(int argc, char **argv)
 {
-    size_t max_n = 10000000, max_queries = 1000000;
+    size_t min_n = 10000, max_n = 10000000, max_queries = 1000000;
     int files = 0, status = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--max-n") && i + 1 < argc)
             max_n = (size_t)strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--n") && i + 1 < argc)
+            min_n = max_n = (size_t)strtoull(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--queries") && i + 1 < argc)
             max_queries = (size_t)strtoull(argv[++i], NULL, 10);
         else if (argv[i][0] == '-') {
-            fprintf(stderr, "usage: %s [--max-n N] [--queries Q] [FILE.ply...]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--max-n N | --n N] [--queries Q] [FILE.ply...]\n",
+                    argv[0]);
             return 2;
         }
     }
@@ -156,7 +161,7 @@ int main(int argc, char **argv)
         free(xyz);
     }
     if (files == 0) {
-        for (size_t n = 10000; n <= max_n; n *= 10) {
+        for (size_t n = min_n; n <= max_n; n *= 10) {
             float *xyz = bench_torus(n, 42);
             if (!xyz)
                 return 1;

@@ -133,15 +133,18 @@ int run(const char *name, const float *xyz, size_t n, size_t max_queries)
 
 int main(int argc, char **argv)
 {
-    size_t max_n = 10000000, max_queries = 1000000;
+    size_t min_n = 10000, max_n = 10000000, max_queries = 1000000;
     int files = 0, status = 0;
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--max-n") && i + 1 < argc)
             max_n = (size_t)strtoull(argv[++i], NULL, 10);
+        else if (!strcmp(argv[i], "--n") && i + 1 < argc)
+            min_n = max_n = (size_t)strtoull(argv[++i], NULL, 10);
         else if (!strcmp(argv[i], "--queries") && i + 1 < argc)
             max_queries = (size_t)strtoull(argv[++i], NULL, 10);
         else if (argv[i][0] == '-') {
-            fprintf(stderr, "usage: %s [--max-n N] [--queries Q] [FILE.ply...]\n", argv[0]);
+            fprintf(stderr, "usage: %s [--max-n N | --n N] [--queries Q] [FILE.ply...]\n",
+                    argv[0]);
             return 2;
         }
     }
@@ -165,7 +168,7 @@ int main(int argc, char **argv)
         free(xyz);
     }
     if (files == 0) {
-        for (size_t n = 10000; n <= max_n; n *= 10) {
+        for (size_t n = min_n; n <= max_n; n *= 10) {
             float *xyz = bench_torus(n, 42);
             if (!xyz)
                 return 1;
