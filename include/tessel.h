@@ -582,6 +582,14 @@ typedef struct tessel_greedy_params {
                               other point within mu * max_spacing mean
                               spacings is isolated. Default 4, range
                               [1, 1000] */
+    uint32_t max_hole;     /* once the front has stopped, boundary loops of
+                              at most this many edges are closed by ear
+                              clipping, provided no new edge is longer than
+                              2 * mu times the loop's mean edge (gaps the
+                              sampling left, not openings of the surface)
+                              and every triangle keeps the mesh valid. Not
+                              in the paper; 0 disables it. Default 16,
+                              range [0, 1000] */
     const uint32_t *existing; /* optional triangles that already exist
                               (existing_count*3 indices into the cloud,
                               counter-clockwise seen from outside, forming
@@ -614,6 +622,7 @@ typedef struct tessel_recon_summary {
     size_t components;           /* connected pieces of the output */
     size_t boundary_edges;       /* edges with one triangle */
     size_t seeds;                /* fronts started from a free point */
+    size_t holes_closed;         /* boundary loops closed (see max_hole) */
     size_t rejected_intersecting;/* candidate triangles refused because they
                                     would have intersected the mesh */
     size_t peak_held_triangles;  /* most triangles held in memory at once */

@@ -218,7 +218,7 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
     (void)f;
     double pr[3];
     pos(g, R, pr);
-    double rcap = g->mu * g->m_cap;
+    double rcap = g->mu * GROW * GROW * g->m_cap;
     double cap2 = 4.0 * rcap * rcap;
     for (int i = 0; i < cnt; i++) {
         const gp_cand *a = &g->cand[g->seq[j + (size_t)i]];
@@ -439,6 +439,7 @@ static tessel_status fill_sector(gp *g, uint32_t R, const gp_frame *f)
     visibility(g, R, f, e, s);
     sort_cands(g);
     g->seq_count = 0;
+    g->empty_gap = 0;
     size_t need = g->cand_count + 2;
     if (grow((void **)&g->seq, &g->seq_cap, need, sizeof *g->seq))
         return TESSEL_ERR_NOMEM;
@@ -456,6 +457,9 @@ static tessel_status fill_sector(gp *g, uint32_t R, const gp_frame *f)
             g->seq[g->seq_count++] = (uint32_t)i;
     }
     g->seq[g->seq_count++] = (uint32_t)is;
+    /* Nothing at all between R's boundary neighbours: the sphere was too
+     * small for the sampling there. */
+    g->empty_gap = g->seq_count == 2;
     /* Points on the mesh side are not trap candidates. */
     for (size_t i = 0; i < g->cand_count; i++)
         if (g->cand[i].kept == 2)
@@ -517,7 +521,7 @@ static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
 }
 
 /* R's fan, its sphere of influence, its candidates and the fill. */
-static tessel_status process_pass(gp *g, uint32_t R)
+static tessel_status process_pass(gp *g, uint32_t R, double scale)
 {
     double pr[3];
     pos(g, R, pr);
@@ -552,12 +556,12 @@ static tessel_status process_pass(gp *g, uint32_t R)
     double re = tsl_norm(d);
     tsl_sub(ps, pr, d);
     double rs = tsl_norm(d);
-    double b = g->mu * m0;
+    double b = scale * g->mu * m0;
     double half = fmax(b, fmax(re, rs)) + g->delta;
     tessel_status st_ = tsl_gp_scan_box(g, R, half);
     if (st_ != TESSEL_OK)
         return st_;
-    if ((st_ = gather(g, b, m0, g->mu, &f, e, s)) != TESSEL_OK)
+    if ((st_ = gather(g, b, m0, scale * g->mu, &f, e, s)) != TESSEL_OK)
         return st_;
     for (int q = 0; q < 3; q++)
         f.n[q] = nsum[q];
@@ -590,37 +594,58 @@ static tessel_status process_pass(gp *g, uint32_t R)
 static tessel_status process(gp *g, uint32_t R)
 {
     g->state[R] = (uint8_t)(g->state[R] + ST_VISITS);
-    return process_pass(g, R);
+    double scale = 1.0;
+    for (int step = 0;; step++, scale *= GROW) {
+        tessel_status s = process_pass(g, R, scale);
+        if (s != TESSEL_OK || st(g, R) == ST_DONE || step == GROW_STEPS || !g->empty_gap)
+            return s;
+    }
+}
+
+/* Sum of the unit normals of p's triangles. */
+static void fan_normal(const gp *g, uint32_t p, double n[3])
+{
+    n[0] = n[1] = n[2] = 0.0;
+    for (uint32_t t = g->head[p]; t != NONE;) {
+        const gp_tri *T = &g->tri[t];
+        double a[3], b[3], c[3], u[3], v[3], nn[3];
+        pos(g, T->v[0], a);
+        pos(g, T->v[1], b);
+        pos(g, T->v[2], c);
+        tsl_sub(b, a, u);
+        tsl_sub(c, a, v);
+        tsl_cross(u, v, nn);
+        if (tsl_normalize(nn))
+            for (int k = 0; k < 3; k++)
+                n[k] += nn[k];
+        t = T->next[tri_pos(T, p)];
+    }
 }
 
 /* Sign of a seed's normal: agree with the triangles already around it, else
  * with the input normal, else face the viewpoint, else point to -depth (the
- * seed is the lowest free point, so -depth is outward on a closed surface). */
-static void orient_seed(gp *g, uint32_t R, double n[3])
+ * seed is the lowest free point, so -depth is outward on a closed surface).
+ * The triangles around it are those at points within `reach` that lie near
+ * the seed's tangent plane (within 27 degrees): points of a facing sheet (a
+ * hand beside a thigh) lie along the normal and would flip the seed. Nearer
+ * points weigh more. Uses g->box. */
+static tessel_status orient_seed(gp *g, uint32_t R, double n[3], double reach)
 {
     double ref[3] = {0, 0, 0};
-    for (size_t i = 0; i < g->cand_count; i++) {
-        uint32_t c = g->cand[i].idx;
-        /* Only neighbours near R's tangent plane vote: points of a facing
-         * sheet (a hand beside a thigh) lie along the normal and would
-         * flip the seed. */
-        double h = tsl_dot(g->cand[i].rel, n);
-        if (h * h > 0.25 * (g->cand[i].d2 - h * h))
+    tessel_status s = tsl_gp_scan_box(g, R, reach);
+    if (s != TESSEL_OK)
+        return s;
+    for (size_t i = 0; i < g->box_count; i++) {
+        const gp_box *b = &g->box[i];
+        if (g->head[b->idx] == NONE)
             continue;
-        for (uint32_t t = g->head[c]; t != NONE;) {
-            const gp_tri *T = &g->tri[t];
-            double a[3], b[3], cc[3], u[3], v[3], nn[3];
-            pos(g, T->v[0], a);
-            pos(g, T->v[1], b);
-            pos(g, T->v[2], cc);
-            tsl_sub(b, a, u);
-            tsl_sub(cc, a, v);
-            tsl_cross(u, v, nn);
-            if (tsl_normalize(nn))
-                for (int k = 0; k < 3; k++)
-                    ref[k] += nn[k];
-            t = T->next[tri_pos(T, c)];
-        }
+        double d2 = tsl_dot(b->rel, b->rel), h = tsl_dot(b->rel, n);
+        if (h * h > 0.25 * (d2 - h * h))
+            continue;
+        double fan[3];
+        fan_normal(g, b->idx, fan);
+        for (int k = 0; k < 3; k++)
+            ref[k] += fan[k] / d2;
     }
     if (!(tsl_dot(ref, ref) > 0.0)) {
         const tessel_cloud *c = g->cloud;
@@ -637,6 +662,7 @@ static void orient_seed(gp *g, uint32_t R, double n[3])
     if (tsl_dot(n, ref) < 0.0)
         for (int k = 0; k < 3; k++)
             n[k] = -n[k];
+    return TESSEL_OK;
 }
 
 static void settle_dead(gp *g, uint32_t R, size_t *counter)
@@ -674,11 +700,26 @@ static tessel_status seed(gp *g, uint32_t R)
     size_t done_near = 0;
     for (size_t k = 0; k < g->box_count; k++)
         done_near += st(g, g->box[k].idx) == ST_DONE;
-    if (g->cand_count < 2 || !pca_normal(g->cand, g->cand_count, f.n)) {
+    /* Fewer than SEED_MIN neighbours make a splinter, not a surface. */
+    if (g->cand_count < SEED_MIN || !pca_normal(g->cand, g->cand_count, f.n)) {
         settle_dead(g, R, done_near ? &g->sum.left_closed_in : &g->sum.left_untriangulated);
         return TESSEL_OK;
     }
-    orient_seed(g, R, f.n);
+    /* A free point whose neighbours are mostly on the mesh already was left
+     * behind by the front (noise beside the surface, a spot it could not
+     * enter): a new front here would only make splinters. */
+    size_t meshed = 0;
+    for (size_t i = 0; i < g->cand_count; i++)
+        meshed += g->head[g->cand[i].idx] != NONE;
+    if (2 * meshed > g->cand_count) {
+        settle_dead(g, R, &g->sum.left_closed_in);
+        return TESSEL_OK;
+    }
+    /* Orientation from up to four spheres around; then the seed's own box
+     * again for the guard. */
+    if ((s = orient_seed(g, R, f.n, 4.0 * f.rho)) != TESSEL_OK ||
+        (s = tsl_gp_scan_box(g, R, f.reach + g->delta)) != TESSEL_OK)
+        return s;
     frame_axes(&f, g->plane_axis);
     project_cands(g, &f, NONE, NONE);
     for (size_t i = 0; i < g->cand_count; i++)
@@ -752,6 +793,157 @@ static tessel_status seed(gp *g, uint32_t R)
 
 
 /* ------------------------------------------------------------------------ */
+/* Closing small holes (not in the paper)                                    */
+/* ------------------------------------------------------------------------ */
+
+/* Triangle (v, u, w) closing v's fan, where u -> v -> w runs along the
+ * boundary: exact checks (not degenerate, fans stay single, no
+ * intersection), then added. *ok tells whether it was. */
+static tessel_status try_ear(gp *g, uint32_t v, uint32_t u, uint32_t w, int *ok)
+{
+    *ok = 0;
+    double pv[3], pu[3], pw[3], d[3];
+    pos(g, v, pv);
+    pos(g, u, pu);
+    pos(g, w, pw);
+    if (tsl_gp_collinear3(pv, pu, pw) || tsl_gp_edge_exists(g, v, u) ||
+        tsl_gp_edge_exists(g, u, w) || tsl_gp_edge_exists(g, w, v))
+        return TESSEL_OK;
+    int hv = tsl_gp_link_check(g, v, u, w, 1);
+    int hu = tsl_gp_link_check(g, u, w, v, 1);
+    int hw = tsl_gp_link_check(g, w, v, u, 1);
+    if (hv == LINK_FAIL || hu == LINK_FAIL || hw == LINK_FAIL)
+        return TESSEL_OK;
+    gp_frame f;
+    memset(&f, 0, sizeof f);
+    tsl_sub(pu, pv, d);
+    f.reach = tsl_norm(d);
+    tsl_sub(pw, pv, d);
+    f.reach = fmax(f.reach, tsl_norm(d));
+    tessel_status s = tsl_gp_scan_box(g, v, f.reach + g->delta);
+    if (s == TESSEL_OK)
+        s = tsl_gp_guard_collect(g, v, &f, 0);
+    if (s != TESSEL_OK)
+        return s;
+    uint32_t tv[3] = {v, u, w};
+    if (!tsl_gp_guard_ok(g, tv)) {
+        g->sum.rejected_intersecting++;
+        return TESSEL_OK;
+    }
+    if ((s = tsl_gp_tri_add(g, v, u, w, 0, NULL)) != TESSEL_OK)
+        return s;
+    tsl_gp_link_apply(g, v, u, w, hv, 1);
+    tsl_gp_link_apply(g, u, w, v, hu, 1);
+    tsl_gp_link_apply(g, w, v, u, hw, 1);
+    *ok = 1;
+    return TESSEL_OK;
+}
+
+/* Ear clipping of the loop L[0..k) (each entry's successor is the next):
+ * the ear at L[i] is the triangle (L[i], L[i-1], L[i+1]); it must turn the
+ * same way as L[i]'s fan (a convex corner; the last triangle has no choice)
+ * and its new edge must not exceed lim. The smallest angle goes first. dry: only these tests, on a copy, to
+ * learn whether the whole loop can be closed. */
+static tessel_status clip_loop(gp *g, uint32_t *L, size_t k, double lim, int dry, int *done)
+{
+    *done = 0;
+    while (k >= 3) {
+        size_t best = k;
+        double best_cos = -2.0;
+        for (size_t i = 0; i < k; i++) {
+            uint32_t u = L[(i + k - 1) % k], v = L[i], w = L[(i + 1) % k];
+            double pv[3], pu[3], pw[3], a[3], b[3], uw[3], en[3];
+            pos(g, v, pv);
+            pos(g, u, pu);
+            pos(g, w, pw);
+            tsl_sub(pu, pv, a);
+            tsl_sub(pw, pv, b);
+            tsl_sub(pw, pu, uw);
+            if (k > 3 && tsl_dot(uw, uw) > lim * lim)
+                continue;
+            tsl_cross(a, b, en);
+            if (k > 3 && !(tsl_dot(en, g->hn + 3 * i) > 0.0))
+                continue;
+            double c = tsl_dot(a, b) / sqrt(tsl_dot(a, a) * tsl_dot(b, b));
+            if (c > best_cos) {
+                best_cos = c;
+                best = i;
+            }
+        }
+        if (best == k)
+            return TESSEL_OK;
+        if (!dry) {
+            int ok;
+            tessel_status s =
+                try_ear(g, L[best], L[(best + k - 1) % k], L[(best + 1) % k], &ok);
+            if (s != TESSEL_OK)
+                return s;
+            if (!ok)
+                return TESSEL_OK;
+        }
+        if (k == 3)
+            break;
+        memmove(L + best, L + best + 1, (k - best - 1) * sizeof *L);
+        memmove(g->hn + 3 * best, g->hn + 3 * (best + 1), 3 * (k - best - 1) * sizeof *g->hn);
+        k--;
+    }
+    *done = 1;
+    return TESSEL_OK;
+}
+
+/* After the front has stopped: closes the boundary loops of at most
+ * max_hole edges that ear clipping can close completely with edges of at
+ * most 2 mu times the loop's mean edge. */
+static tessel_status close_holes(gp *g)
+{
+    if (g->max_hole < 3)
+        return TESSEL_OK;
+    size_t cap = (size_t)g->max_hole + 1;
+    uint32_t *L = tsl_alloc_array(2 * cap, sizeof *L);
+    if (!L || grow((void **)&g->hn, &g->hn_cap, 6 * cap, sizeof *g->hn)) {
+        free(L);
+        return TESSEL_ERR_NOMEM;
+    }
+    tessel_status s = TESSEL_OK;
+    for (uint32_t p = 0; p < g->n && s == TESSEL_OK; p++) {
+        if (!is_live(g, p) || g->head[p] == NONE)
+            continue;
+        size_t k = 0;
+        uint32_t x = p, low = p;
+        do {
+            L[k++] = x;
+            low = x < low ? x : low;
+            x = g->ls[x];
+        } while (x != p && x != NONE && k <= g->max_hole);
+        if (x != p || k < 3 || low != p)
+            continue;
+        double len = 0.0;
+        for (size_t i = 0; i < k; i++) {
+            double a[3], b[3], d[3];
+            pos(g, L[i], a);
+            pos(g, L[(i + 1) % k], b);
+            tsl_sub(b, a, d);
+            len += tsl_norm(d);
+        }
+        double lim = 2.0 * g->mu * len / (double)k;
+        memcpy(L + cap, L, k * sizeof *L);
+        for (size_t i = 0; i < k; i++) {
+            fan_normal(g, L[i], g->hn + 3 * i);
+            memcpy(g->hn + 3 * (cap + i), g->hn + 3 * i, 3 * sizeof *g->hn);
+        }
+        int done;
+        if ((s = clip_loop(g, L + cap, k, lim, 1, &done)) != TESSEL_OK || !done)
+            continue;
+        for (size_t i = 0; i < k; i++)
+            memcpy(g->hn + 3 * i, g->hn + 3 * (cap + i), 3 * sizeof *g->hn);
+        if ((s = clip_loop(g, L, k, lim, 0, &done)) == TESSEL_OK && done)
+            g->sum.holes_closed++;
+    }
+    free(L);
+    return s;
+}
+
+/* ------------------------------------------------------------------------ */
 /* The main loop                                                             */
 /* ------------------------------------------------------------------------ */
 
@@ -806,6 +998,7 @@ tessel_greedy_params tessel_greedy_params_default(void)
     p.min_angle = 0.0;
     p.plane = TESSEL_GREEDY_PLANE_PCA;
     p.max_spacing = 4.0;
+    p.max_hole = 16;
     p.existing = NULL;
     p.existing_count = 0;
     return p;
@@ -832,7 +1025,7 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
         return TESSEL_ERR_INVALID_ARG;
     if (!(p.mu >= 1.2 && p.mu <= 10.0) || !(p.max_angle >= 60.0 && p.max_angle <= 175.0) ||
         !(p.min_angle >= 0.0 && p.min_angle <= 45.0) ||
-        !(p.max_spacing >= 1.0 && p.max_spacing <= 1000.0) ||
+        !(p.max_spacing >= 1.0 && p.max_spacing <= 1000.0) || p.max_hole > 1000 ||
         (p.plane != TESSEL_GREEDY_PLANE_PCA && p.plane != TESSEL_GREEDY_PLANE_AXIS) ||
         (p.existing_count && !p.existing))
         return TESSEL_ERR_INVALID_ARG;
@@ -848,6 +1041,7 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
     g.cos_alpha = cos(p.max_angle * 3.14159265358979323846 / 180.0);
     g.beta = p.min_angle * 3.14159265358979323846 / 180.0;
     g.max_spacing = p.max_spacing;
+    g.max_hole = p.max_hole;
     g.plane_axis = p.plane == TESSEL_GREEDY_PLANE_AXIS;
     g.cb = callbacks;
     g.sink = sink;
@@ -859,6 +1053,8 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
         s = tsl_progress(callbacks, "greedy", 0.0);
     if (s == TESSEL_OK)
         s = run(&g);
+    if (s == TESSEL_OK)
+        s = close_holes(&g);
     if (s == TESSEL_OK)
         s = tsl_gp_sweep(&g, 1);
     if (s == TESSEL_OK)

@@ -29,6 +29,13 @@ enum {
 /* Boundary points are looked at again when a neighbour changes their fan,
  * at most this many times in all. */
 #define MAX_VISITS 3
+/* A reference point whose free sector holds no candidate at all tries
+ * again with a sphere of influence GROW times larger, at most GROW_STEPS
+ * times (uneven sampling: the next row of points lies beyond mu * m). */
+#define GROW 1.5
+#define GROW_STEPS 2
+/* A seed needs this many candidates (a surface around it, not a splinter). */
+#define SEED_MIN 4
 /* Triangles per batch sent to the sink. */
 #define OUT_BATCH 8192
 
@@ -91,6 +98,7 @@ typedef struct gp {
     const tessel_cloud *cloud;
     size_t n;
     double mu, cos_alpha, beta, max_spacing;
+    uint32_t max_hole;
     int plane_axis;
     const tessel_callbacks *cb;
     const tessel_triangle_sink *sink;
@@ -166,8 +174,12 @@ typedef struct gp {
     gp_gtri *gt;
     size_t gt_count, gt_cap;
     uint32_t stamp;
+    int empty_gap;        /* the last fill found no candidate between R's
+                             boundary neighbours */
     gp_cone cone;         /* of the current reference point */
     gp_pcache *pc;        /* PCACHE entries */
+    double *hn;           /* hole closing: fan normals of the loop, 3 each */
+    size_t hn_cap;
 
     tessel_recon_summary sum;
     size_t processed;

@@ -692,6 +692,7 @@ void tsl_gp_free(gp *g)
     free(g->seq);
     free(g->gt);
     free(g->pc);
+    free(g->hn);
 }
 
 static inline uint32_t depth_key(float f)
@@ -941,7 +942,7 @@ tessel_status tsl_gp_init(gp *g)
                 g->sum.left_duplicate++;
             }
         }
-    if ((s = init_blocks(g, ext, 4.0 * g->mu * g->m_cap + 2.0 * g->delta)) != TESSEL_OK)
+    if ((s = init_blocks(g, ext, 4.0 * g->mu * GROW * GROW * g->m_cap + 2.0 * g->delta)) != TESSEL_OK)
         return s;
     order_seeds(g);
     return TESSEL_OK;
