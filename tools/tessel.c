@@ -11,6 +11,7 @@ typedef struct command {
 } command;
 
 static const command commands[] = {
+    {"reconstruct", cmd_reconstruct, "triangulate a point cloud (greedy projection by default)"},
     {"info", cmd_info, "describe a point cloud or mesh file"},
     {"convert", cmd_convert, "convert between file formats"},
     {"smooth", cmd_smooth, "denoise a cloud by robust local plane fitting"},
