@@ -3,13 +3,13 @@
  * set before it. */
 #include "png_writer.h"
 
-#include <errno.h>
+#include "io/io_internal.h"
+
 #include <png.h>
 #include <setjmp.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 typedef struct png_failure {
     char *err;
@@ -32,26 +32,12 @@ static void on_png_warning(png_structp png, png_const_charp msg)
 int png_write_rgb(const char *path, const uint8_t *rgb, uint32_t width, uint32_t height,
                   char *err, size_t errlen)
 {
-    size_t n = strlen(path);
-    char *tmp = malloc(n + 16);
-    if (!tmp) {
-        snprintf(err, errlen, "out of memory");
-        return -1;
-    }
-    memcpy(tmp, path, n);
-    memcpy(tmp + n, ".tmp.XXXXXX", 12);
-    int fd = mkstemp(tmp);
-    if (fd < 0) {
-        snprintf(err, errlen, "cannot create a file next to it: %s", strerror(errno));
-        free(tmp);
-        return -1;
-    }
-    FILE *fp = fdopen(fd, "wb");
-    if (!fp) {
-        snprintf(err, errlen, "%s", strerror(errno));
-        close(fd);
-        unlink(tmp);
-        free(tmp);
+    /* The library's safe-write helper: temporary next to the destination,
+     * renamed only when everything was written, usual file mode. */
+    tsl_outfile out;
+    tessel_diag diag = {0};
+    if (tsl_outfile_open(&out, path, &diag) != TESSEL_OK) {
+        snprintf(err, errlen, "%s", diag.message);
         return -1;
     }
     png_failure failure = {err, errlen};
@@ -62,7 +48,7 @@ int png_write_rgb(const char *path, const uint8_t *rgb, uint32_t width, uint32_t
     if (!png || !info) {
         snprintf(err, errlen, "out of memory");
     } else if (setjmp(png_jmpbuf(png)) == 0) {
-        png_init_io(png, fp);
+        png_init_io(png, out.fp);
         png_set_IHDR(png, info, width, height, 8, PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
                      PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
         png_write_info(png, info);
@@ -72,20 +58,13 @@ int png_write_rgb(const char *path, const uint8_t *rgb, uint32_t width, uint32_t
         ok = 1;
     }
     png_destroy_write_struct(png ? &png : NULL, info ? &info : NULL);
-    if (ok && (fflush(fp) != 0 || ferror(fp))) {
-        snprintf(err, errlen, "%s", strerror(errno));
-        ok = 0;
+    if (!ok) {
+        tsl_outfile_abort(&out);
+        return -1;
     }
-    if (fclose(fp) != 0 && ok) {
-        snprintf(err, errlen, "%s", strerror(errno));
-        ok = 0;
+    if (tsl_outfile_commit(&out, &diag) != TESSEL_OK) {
+        snprintf(err, errlen, "%s", diag.message);
+        return -1;
     }
-    if (ok && rename(tmp, path) != 0) {
-        snprintf(err, errlen, "%s", strerror(errno));
-        ok = 0;
-    }
-    if (!ok)
-        unlink(tmp);
-    free(tmp);
-    return ok ? 0 : -1;
+    return 0;
 }
