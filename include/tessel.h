@@ -1139,6 +1139,14 @@ typedef struct tessel_smooth_recon_params {
     tessel_front_params front;       /* step 4 */
     tessel_refine_params refine;     /* step 5 (rounds 0: the triangulation
                                         of the representatives as is) */
+    int auto_cluster_size;           /* 1 (default): simplify.cluster
+                                        .max_diameter is chosen from the
+                                        noise the smoothing removed (RMS
+                                        displacement r, in h): 11 r within
+                                        [3, 8] h, so that representatives
+                                        stay farther apart than the noise
+                                        left can confuse, yet follow thin
+                                        parts of clean clouds; 0: as given */
     int threads;                     /* every stage's thread count when not
                                         0; 0 (default) leaves each stage's */
 } tessel_smooth_recon_params;
@@ -1146,6 +1154,7 @@ TESSEL_API tessel_smooth_recon_params tessel_smooth_recon_params_default(void);
 
 typedef struct tessel_smooth_recon_stats {
     double spacing;                  /* h, world units */
+    double cluster_diameter;         /* max_diameter used, multiple of h */
     size_t points;                   /* input points */
     size_t representatives;          /* points triangulated */
     size_t vertices, triangles;      /* in the result */

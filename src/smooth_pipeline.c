@@ -19,6 +19,15 @@
 #include <string.h>
 #include <time.h>
 
+/* Automatic cluster diameter (multiples of h): this many times the RMS
+ * displacement of the smoothing (in h), within [MIN, MAX]. Measured on the
+ * data sets of the project: clean Poisson-disk samples move by 0.1-0.3 h
+ * (curvature) and triangulate best from clusters 3 h wide; samples with
+ * noise of the order of h move by about 0.7 h and need 8 h. */
+#define AUTO_DIAMETER_PER_NOISE 11.0
+#define AUTO_DIAMETER_MIN 3.0
+#define AUTO_DIAMETER_MAX 8.0
+
 tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
 {
     tessel_smooth_recon_params p;
@@ -30,6 +39,7 @@ tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
     p.simplify = tessel_simplify_params_default();
     p.front = tessel_front_params_default();
     p.refine = tessel_refine_params_default();
+    p.auto_cluster_size = 1;
     p.threads = 0;
     return p;
 }
@@ -158,6 +168,19 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     if ((st = tessel_smooth(cloud, &smoothed, &p.smooth, callbacks, &s.smooth)))
         goto fail;
     s.seconds_smooth = now() - t;
+
+    /* Representatives far enough apart for the noise left (see the
+     * params): on clean input small clusters follow thin parts; on noisy
+     * input closer representatives would make the triangulation trip over
+     * their residual noise. */
+    if (p.auto_cluster_size) {
+        double noise = s.smooth.rms_displacement / h;
+        double d = AUTO_DIAMETER_PER_NOISE * noise;
+        p.simplify.cluster.max_diameter = d < AUTO_DIAMETER_MIN   ? AUTO_DIAMETER_MIN
+                                          : d > AUTO_DIAMETER_MAX ? AUTO_DIAMETER_MAX
+                                                                  : d;
+    }
+    s.cluster_diameter = p.simplify.cluster.max_diameter;
 
     t = now();
     if ((st = tessel_simplify(&smoothed, &reps, &p.simplify, callbacks, &s.simplify)))

@@ -27,7 +27,7 @@ static const char smooth_recon_help_fmt[] =
     "  --sigma-max X       cluster flatness tolerance, 0..1/3 (default %g)\n"
     "  --n-min N           clusters of at most N points are not split for\n"
     "                      flatness (default %u)\n"
-    "  --max-diameter X    largest cluster in h (default %g)\n"
+    "  --max-diameter X    largest cluster in h (default: from the noise, 3..8)\n"
     "  --max-edge X        eps1: new edges shorter than X times the local\n"
     "                      spacing of the representatives (default %g)\n"
     "  --theta DEG         first dihedral tolerance (default %g)\n"
@@ -50,8 +50,7 @@ static void format_help(char *buf, size_t size)
     tessel_smooth_recon_params d = tessel_smooth_recon_params_default();
     snprintf(buf, size, smooth_recon_help_fmt, d.refine.rounds, d.smooth.passes, d.smooth.k,
              d.smooth.sigma_rho, d.smooth.sigma_w, d.simplify.cluster.sigma_max,
-             d.simplify.cluster.n_min, d.simplify.cluster.max_diameter,
-             d.front.max_edge_ratio, d.front.theta_deg, d.front.theta_step_deg,
+             d.simplify.cluster.n_min, d.front.max_edge_ratio, d.front.theta_deg, d.front.theta_step_deg,
              d.front.max_angle_deg, d.front.normal_angle_deg, d.front.max_hole_radius,
              d.refine.min_offset, d.refine.min_edge_length);
 }
@@ -159,6 +158,7 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
         case 3:
             ok = x > 0;
             o->p.simplify.cluster.max_diameter = x;
+            o->p.auto_cluster_size = 0;
             break;
         case 4:
             ok = x > 1;
@@ -268,6 +268,7 @@ int cmd_reconstruct_smooth(int argc, char **argv)
     double seconds = cli_now() - t0;
     if (common.json) {
         printf("{\"method\": \"smooth\", \"points\": %zu, \"spacing\": %.9g, "
+               "\"cluster_diameter\": %.4g, "
                "\"representatives\": %zu, \"vertices\": %zu, \"triangles\": %zu, "
                "\"border_edges\": %zu, \"seeds\": %zu, \"bridges\": %zu, "
                "\"hole_triangles\": %zu, \"splits\": %zu, \"flips\": %zu, "
@@ -275,16 +276,19 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                "\"simplify_seconds\": %.6f, \"front_seconds\": %.6f, "
                "\"refine_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
                "\"write_seconds\": %.6f, \"seconds\": %.6f}\n",
-               n, s.spacing, s.representatives, s.vertices, s.triangles, s.border_edges,
+               n, s.spacing, s.cluster_diameter, s.representatives, s.vertices, s.triangles,
+               s.border_edges,
                s.front.seeds, s.front.bridges, s.front.hole_triangles, s.refine.splits,
                s.refine.flips, t_read, s.seconds_spacing, s.seconds_smooth,
                s.seconds_simplify, s.seconds_front, s.seconds_refine, s.seconds_total,
                t_write, seconds);
     } else if (!common.quiet) {
         fprintf(stderr,
-                "tessel: smooth method: %zu points, spacing h = %.4g; %zu representatives; "
-                "%zu triangles on them (%zu fronts, %zu hole triangles, %zu border edges)\n",
-                n, s.spacing, s.representatives, s.front.triangles, s.front.seeds,
+                "tessel: smooth method: %zu points, spacing h = %.4g; %zu representatives "
+                "(clusters up to %.3g h); %zu triangles on them (%zu fronts, %zu hole "
+                "triangles, %zu border edges)\n",
+                n, s.spacing, s.representatives, s.cluster_diameter, s.front.triangles,
+                s.front.seeds,
                 s.front.hole_triangles, s.front.border_edges);
         fprintf(stderr,
                 "tessel: %u refinement rounds: %zu splits, %zu flips -> %zu vertices, %zu "
