@@ -50,8 +50,8 @@ static void format_help(char *buf, size_t size)
     tessel_smooth_recon_params d = tessel_smooth_recon_params_default();
     snprintf(buf, size, smooth_recon_help_fmt, d.refine.rounds, d.smooth.passes, d.smooth.k,
              d.smooth.sigma_rho, d.smooth.sigma_w, d.simplify.cluster.sigma_max,
-             d.simplify.cluster.n_min, d.front.max_edge_ratio, d.front.theta_deg, d.front.theta_step_deg,
-             d.front.max_angle_deg, d.front.normal_angle_deg, d.front.max_hole_radius,
+             d.simplify.cluster.n_min, d.front.max_edge_ratio, d.front.theta_deg,
+             d.front.theta_step_deg, d.front.max_angle_deg, d.front.normal_angle_deg, d.front.max_hole_radius,
              d.refine.min_offset, d.refine.min_edge_length);
 }
 
