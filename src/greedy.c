@@ -147,6 +147,33 @@ static void sort_cands(gp *g)
     }
 }
 
+/* Of two kept candidates in exactly the same direction from R (a regular
+ * grid has many), the farther is hidden behind the nearer: dropped (a
+ * triangle through both would be degenerate). R's boundary neighbours end_a
+ * and end_b are never dropped. The candidates must be sorted by angle. */
+static void drop_hidden(gp *g, uint32_t end_a, uint32_t end_b)
+{
+    const double o[2] = {0.0, 0.0};
+    for (size_t i = 0; i < g->cand_count; i++) {
+        gp_cand *a = &g->cand[i];
+        if (a->kept != 1)
+            continue;
+        for (size_t j = i + 1; j < g->cand_count && g->cand[j].key - a->key < 1e-9; j++) {
+            gp_cand *b = &g->cand[j];
+            double pa[2] = {a->x, a->y}, pb[2] = {b->x, b->y};
+            if (b->kept != 1 || tsl_orient2d(o, pa, pb) != 0.0 || a->x * b->x + a->y * b->y <= 0.0)
+                continue;
+            int a_end = a->idx == end_a || a->idx == end_b;
+            int b_end = b->idx == end_a || b->idx == end_b;
+            gp_cand *drop = (b->d2 > a->d2 && !b_end) || a_end ? b : a;
+            if (!(drop == a ? a_end : b_end))
+                drop->kept = 0;
+            if (a->kept != 1)
+                break;
+        }
+    }
+}
+
 /* Visibility rules 2 and 3 of section 4.1 on the kept candidates: drop
  * those that have R in their invisible region (between their two boundary
  * edges) and those hidden from R by a boundary edge of a candidate
@@ -218,8 +245,7 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
     (void)f;
     double pr[3];
     pos(g, R, pr);
-    double rcap = g->mu * GROW * GROW * g->m_cap;
-    double cap2 = 4.0 * rcap * rcap;
+    double cap2 = 4.0 * g->rho_cap * g->rho_cap;
     for (int i = 0; i < cnt; i++) {
         const gp_cand *a = &g->cand[g->seq[j + (size_t)i]];
         const gp_cand *b = &g->cand[g->seq[j + (size_t)i + 1]];
@@ -438,6 +464,7 @@ static tessel_status fill_sector(gp *g, uint32_t R, const gp_frame *f)
     }
     visibility(g, R, f, e, s);
     sort_cands(g);
+    drop_hidden(g, e, s);
     g->seq_count = 0;
     g->empty_gap = 0;
     size_t need = g->cand_count + 2;
@@ -498,7 +525,7 @@ static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
         m = sqrt(dmin2);
     if (m < g->m_floor)
         m = g->m_floor;
-    f->rho = mu * m;
+    f->rho = fmin(mu * m, g->rho_cap);
     double rho2 = f->rho * f->rho;
     f->reach = f->rho;
     g->cand_count = 0;
@@ -556,7 +583,7 @@ static tessel_status process_pass(gp *g, uint32_t R, double scale)
     double re = tsl_norm(d);
     tsl_sub(ps, pr, d);
     double rs = tsl_norm(d);
-    double b = scale * g->mu * m0;
+    double b = fmin(scale * g->mu * m0, g->rho_cap);
     double half = fmax(b, fmax(re, rs)) + g->delta;
     tessel_status st_ = tsl_gp_scan_box(g, R, half);
     if (st_ != TESSEL_OK)
@@ -726,6 +753,7 @@ static tessel_status seed(gp *g, uint32_t R)
         g->cand[i].key = pseudo_angle(g->cand[i].x, g->cand[i].y);
     visibility(g, R, &f, NONE, NONE);
     sort_cands(g);
+    drop_hidden(g, NONE, NONE);
     if ((s = tsl_gp_guard_collect(g, R, &f, 0)) != TESSEL_OK)
         return s;
     /* Kept candidates in angular order; start after the widest gap. */
@@ -969,8 +997,8 @@ static tessel_status run(gp *g)
                 return s;
             if ((++g->processed & 4095) == 0 && (s = progress(g)) != TESSEL_OK)
                 return s;
-            if (g->created_since_sweep >= 65536 &&
-                g->created_since_sweep >= g->alive_after_sweep &&
+            if (g->created_since_sweep >= 16384 &&
+                4 * g->created_since_sweep >= g->alive_after_sweep &&
                 (s = tsl_gp_sweep(g, 0)) != TESSEL_OK)
                 return s;
         }

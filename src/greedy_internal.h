@@ -31,7 +31,8 @@ enum {
 #define MAX_VISITS 3
 /* A reference point whose free sector holds no candidate at all tries
  * again with a sphere of influence GROW times larger, at most GROW_STEPS
- * times (uneven sampling: the next row of points lies beyond mu * m). */
+ * times and never beyond rho_cap (uneven sampling: the next row of points
+ * lies beyond mu * m). */
 #define GROW 1.5
 #define GROW_STEPS 2
 /* A seed needs this many candidates (a surface around it, not a splinter). */
@@ -123,6 +124,8 @@ typedef struct gp {
     /* lengths (world units) */
     double spacing;       /* mean nearest-neighbour distance */
     double m_cap;         /* cap on m */
+    double rho_cap;       /* largest sphere of influence, mu * m_cap, grown
+                             or not */
     double m_floor;       /* floor on m (near-duplicates) */
     double ell;           /* long-triangle threshold (max edge) */
     double delta;         /* guard margin: ell / sqrt(3) */

@@ -489,12 +489,54 @@ static tessel_status tri_retire(gp *g, uint32_t t)
 }
 
 /* Retires every held triangle whose surroundings have no live point left. */
+/* No live point in the blocks within k rings of block b. */
+static int blocks_dead(const gp *g, size_t b, long k)
+{
+    long c[3] = {(long)(b % g->bn[0]), (long)(b / g->bn[0] % g->bn[1]),
+                 (long)(b / g->bn[0] / g->bn[1])};
+    long lo[3], hi[3];
+    for (int a = 0; a < 3; a++) {
+        lo[a] = c[a] - k < 0 ? 0 : c[a] - k;
+        hi[a] = c[a] + k >= (long)g->bn[a] ? (long)g->bn[a] - 1 : c[a] + k;
+    }
+    for (long z = lo[2]; z <= hi[2]; z++)
+        for (long y = lo[1]; y <= hi[1]; y++)
+            for (long x = lo[0]; x <= hi[0]; x++)
+                if (g->blive[((size_t)z * g->bn[1] + (size_t)y) * g->bn[0] + (size_t)x])
+                    return 0;
+    return 1;
+}
+
+/* Triangle t can never meet a later triangle: a later one lies within
+ * 2 * rho_cap of a live point (its reference point), t within its longest
+ * edge of its first vertex, and no live point is that near. Blocks are
+ * 2 * rho_cap + ell wide, so for triangles up to ell the 27 blocks around
+ * suffice; longer ones look further. */
+static int retirable(const gp *g, uint32_t t)
+{
+    const gp_tri *T = &g->tri[t];
+    size_t b = block_of(g, g->xyz + 3 * (size_t)T->v[0]);
+    if (g->bdead[b] != 27)
+        return 0;
+    if (!(g->tflag[t] & TF_LONG))
+        return 1;
+    double p[3][3], d[3], l2 = 0.0;
+    for (int k = 0; k < 3; k++)
+        pos(g, T->v[k], p[k]);
+    for (int k = 0; k < 3; k++) {
+        tsl_sub(p[k], p[(k + 1) % 3], d);
+        l2 = fmax(l2, tsl_dot(d, d));
+    }
+    long rings = (long)ceil((2.0 * g->rho_cap + sqrt(l2)) * g->inv_block);
+    return rings <= 1 || blocks_dead(g, b, rings);
+}
+
 tessel_status tsl_gp_sweep(gp *g, int all)
 {
     for (size_t t = 0; t < g->tused; t++) {
         if (!(g->tflag[t] & TF_ALIVE))
             continue;
-        if (!all && g->bdead[block_of(g, g->xyz + 3 * (size_t)g->tri[t].v[0])] != 27)
+        if (!all && !retirable(g, (uint32_t)t))
             continue;
         tessel_status s = tri_retire(g, (uint32_t)t);
         if (s != TESSEL_OK)
@@ -942,7 +984,8 @@ tessel_status tsl_gp_init(gp *g)
                 g->sum.left_duplicate++;
             }
         }
-    if ((s = init_blocks(g, ext, 4.0 * g->mu * GROW * GROW * g->m_cap + 2.0 * g->delta)) != TESSEL_OK)
+    g->rho_cap = g->mu * g->m_cap;
+    if ((s = init_blocks(g, ext, 2.0 * g->rho_cap + g->ell)) != TESSEL_OK)
         return s;
     order_seeds(g);
     return TESSEL_OK;

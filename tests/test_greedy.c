@@ -13,6 +13,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 static tessel_mesh_report check_mesh(const tessel_mesh *m)
 {
@@ -157,9 +159,325 @@ static void test_open_and_hard(void)
     tessel_cloud_free(&c);
 }
 
+
+/* ---- streaming into a sink ---- */
+
+typedef struct sink_buf {
+    uint32_t *t;
+    size_t n, cap, batches;
+    tessel_status fail_with; /* returned from the second batch on */
+} sink_buf;
+
+static tessel_status sink_emit(void *user, const uint32_t *t, size_t count)
+{
+    sink_buf *b = user;
+    b->batches++;
+    if (b->fail_with != TESSEL_OK && b->batches > 1)
+        return b->fail_with;
+    if (b->n + count > b->cap) {
+        size_t cap = b->cap ? 2 * b->cap : 4096;
+        while (cap < b->n + count)
+            cap *= 2;
+        uint32_t *nt = realloc(b->t, cap * 3 * sizeof *nt);
+        if (!nt)
+            return TESSEL_ERR_NOMEM;
+        b->t = nt;
+        b->cap = cap;
+    }
+    memcpy(b->t + 3 * b->n, t, count * 3 * sizeof *t);
+    b->n += count;
+    return TESSEL_OK;
+}
+
+/* A mesh over all the cloud's points with the given triangles. */
+static tessel_mesh mesh_of(const tessel_cloud *c, const uint32_t *t, size_t n)
+{
+    tessel_mesh m;
+    memset(&m, 0, sizeof m);
+    m.vertex_count = c->count;
+    m.xyz = c->xyz;
+    m.triangle_count = n;
+    m.triangles = (uint32_t *)t;
+    return m;
+}
+
+static void test_deterministic(void)
+{
+    tessel_cloud c;
+    CHECK(surf_genus2(&c, 0.03, 9) == TESSEL_OK);
+    tessel_greedy_params p = tessel_greedy_params_default();
+    sink_buf a = {0}, b = {0};
+    tessel_triangle_sink sa = {sink_emit, &a}, sb = {sink_emit, &b};
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sa, NULL) == TESSEL_OK);
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sb, NULL) == TESSEL_OK);
+    CHECK(a.n == b.n && a.n > 0 && memcmp(a.t, b.t, a.n * 3 * sizeof *a.t) == 0);
+    /* Translated far away (float spacing changes): still valid. */
+    for (size_t i = 0; i < 3 * c.count; i++)
+        c.xyz[i] += 1000.0f;
+    tessel_mesh m;
+    tessel_recon_summary sum;
+    recon("genus-2 moved by 1000", &c, &p, &m, &sum);
+    tessel_mesh_free(&m);
+    free(a.t);
+    free(b.t);
+    tessel_cloud_free(&c);
+}
+
+static void test_duplicates_and_degenerate(void)
+{
+    tessel_greedy_params p = tessel_greedy_params_default();
+    tessel_mesh m;
+    tessel_recon_summary sum;
+    tessel_cloud s, c;
+    CHECK(surf_sphere(&s, 0.06, 10) == TESSEL_OK);
+    /* Every fifth point twice, some three times, interleaved. */
+    size_t extra = 0;
+    for (size_t i = 0; i < s.count; i++)
+        extra += (i % 5 == 0) + (i % 20 == 0);
+    CHECK(tessel_cloud_alloc(&c, s.count + extra, 0, 0) == TESSEL_OK);
+    size_t k = 0;
+    for (size_t i = 0; i < s.count; i++) {
+        int copies = 1 + (i % 5 == 0) + (i % 20 == 0);
+        for (int r = 0; r < copies; r++, k++)
+            memcpy(c.xyz + 3 * k, s.xyz + 3 * i, 3 * sizeof(float));
+    }
+    CHECK(k == c.count);
+    tessel_mesh_report rep = recon("sphere with duplicates", &c, &p, &m, &sum);
+    CHECK(sum.left_duplicate == extra);
+    CHECK(sum.points_used == s.count);
+    CHECK(rep.boundary_edges == 0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&s);
+
+    /* Too few points; all points equal; all on a line; a regular grid (many
+     * cocircular points, exact ties in the angular order). */
+    sink_buf b = {0};
+    tessel_triangle_sink sink = {sink_emit, &b};
+    CHECK(tessel_cloud_alloc(&c, 2, 0, 0) == TESSEL_OK);
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink, &sum) == TESSEL_ERR_TOO_FEW_POINTS);
+    tessel_cloud_free(&c);
+    CHECK(tessel_cloud_alloc(&c, 50, 0, 0) == TESSEL_OK); /* all at the origin */
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink, &sum) == TESSEL_OK);
+    CHECK(b.n == 0 && sum.left_duplicate == 49 && summary_adds_up(&sum));
+    for (size_t i = 0; i < c.count; i++)
+        c.xyz[3 * i] = (float)i;
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink, &sum) == TESSEL_OK);
+    CHECK(b.n == 0 && sum.points_used == 0 && summary_adds_up(&sum));
+    tessel_cloud_free(&c);
+    CHECK(tessel_cloud_alloc(&c, 40 * 40, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < c.count; i++) {
+        c.xyz[3 * i] = (float)(i % 40);
+        c.xyz[3 * i + 1] = (float)(i / 40);
+    }
+    rep = recon("regular grid", &c, &p, &m, &sum);
+    CHECK(sum.points_used == c.count && rep.euler == 1 && rep.boundary_loops == 1);
+    tessel_mesh_free(&m);
+    /* Bad input. */
+    c.xyz[7] = NAN;
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink, &sum) == TESSEL_ERR_INVALID_ARG);
+    c.xyz[7] = 0.0f;
+    tessel_greedy_params bad = p;
+    bad.mu = 0.5;
+    CHECK(tessel_reconstruct_greedy(&c, &bad, NULL, &sink, &sum) == TESSEL_ERR_INVALID_ARG);
+    bad = p;
+    bad.max_angle = 200.0;
+    CHECK(tessel_reconstruct_greedy(&c, &bad, NULL, &sink, &sum) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, NULL, &sum) == TESSEL_ERR_INVALID_ARG);
+    tessel_cloud_free(&c);
+    free(b.t);
+}
+
+static void test_options(void)
+{
+    tessel_cloud c;
+    tessel_mesh m, m0;
+    tessel_recon_summary sum;
+    CHECK(surf_torus(&c, 1.0, 0.35, 0.05, 12) == TESSEL_OK);
+    tessel_greedy_params p = tessel_greedy_params_default();
+    tessel_mesh_report r0 = recon("torus", &c, &p, &m0, &sum);
+    p.plane = TESSEL_GREEDY_PLANE_AXIS;
+    tessel_mesh_report r = recon("torus, axis planes", &c, &p, &m, &sum);
+    CHECK(r.boundary_edges * 100 <= r.edges); /* mostly closed */
+    tessel_mesh_free(&m);
+    /* The angle criterion drops skinny neighbours: smaller angles grow. */
+    p = tessel_greedy_params_default();
+    p.min_angle = 15.0;
+    r = recon("torus, min angle 15", &c, &p, &m, &sum);
+    CHECK_MSG(r.mean_min_angle_deg > r0.mean_min_angle_deg, "%g vs %g", r.mean_min_angle_deg,
+              r0.mean_min_angle_deg);
+    tessel_mesh_free(&m);
+    tessel_mesh_free(&m0);
+    tessel_cloud_free(&c);
+
+    /* An open surface takes its side from the input normals. */
+    CHECK(surf_plane_hole(&c, 0.08, 13) == TESSEL_OK);
+    for (int flip = 0; flip < 2; flip++) {
+        for (size_t i = 0; i < c.count; i++)
+            c.normals[3 * i + 2] = flip ? -1.0f : 1.0f;
+        p = tessel_greedy_params_default();
+        recon("plane, normals up/down", &c, &p, &m, &sum);
+        int agree = 0;
+        for (size_t t = 0; t < m.triangle_count; t++) {
+            const float *a = m.xyz + 3 * (size_t)m.triangles[3 * t];
+            const float *b = m.xyz + 3 * (size_t)m.triangles[3 * t + 1];
+            const float *d = m.xyz + 3 * (size_t)m.triangles[3 * t + 2];
+            double nz = ((double)b[0] - a[0]) * ((double)d[1] - a[1]) -
+                        ((double)b[1] - a[1]) * ((double)d[0] - a[0]);
+            agree += flip ? nz < 0.0 : nz > 0.0;
+        }
+        CHECK((size_t)agree == m.triangle_count && agree > 0);
+        tessel_mesh_free(&m);
+    }
+    tessel_cloud_free(&c);
+}
+
+/* The front can start from triangles that already exist (a neighbouring
+ * tile's): reconstruct a sphere, keep the cap above z = 0.3 and give it
+ * back; the new triangles close the sphere without repeating the cap. */
+static void test_existing(void)
+{
+    tessel_cloud c;
+    CHECK(surf_sphere(&c, 0.06, 14) == TESSEL_OK);
+    tessel_greedy_params p = tessel_greedy_params_default();
+    sink_buf all = {0};
+    tessel_triangle_sink sink = {sink_emit, &all};
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink, NULL) == TESSEL_OK);
+    uint32_t *cap = malloc(all.n * 3 * sizeof *cap);
+    size_t nc = 0;
+    for (size_t t = 0; t < all.n; t++) {
+        int up = 1;
+        for (int k = 0; k < 3; k++)
+            up &= c.xyz[3 * (size_t)all.t[3 * t + k] + 2] > 0.3f;
+        if (up)
+            memcpy(cap + 3 * nc++, all.t + 3 * t, 3 * sizeof *cap);
+    }
+    tessel_mesh mc = mesh_of(&c, cap, nc);
+    tessel_mesh_report rc = check_mesh(&mc);
+    CHECK(nc > 100 && rc.nonmanifold_vertices == 0 && rc.components == 1);
+    p.existing = cap;
+    p.existing_count = nc;
+    sink_buf rest = {0};
+    tessel_triangle_sink sink2 = {sink_emit, &rest};
+    tessel_recon_summary sum;
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink2, &sum) == TESSEL_OK);
+    CHECK(sum.triangles == rest.n && rest.n + nc >= all.n - 20);
+    uint32_t *both = malloc((rest.n + nc) * 3 * sizeof *both);
+    memcpy(both, cap, nc * 3 * sizeof *both);
+    memcpy(both + 3 * nc, rest.t, rest.n * 3 * sizeof *both);
+    tessel_mesh mb = mesh_of(&c, both, rest.n + nc);
+    tessel_mesh_report rb = check_mesh(&mb);
+    CHECK_MSG(tessel_mesh_report_valid(&rb) && rb.boundary_edges == 0 && rb.euler == 2,
+              "existing + new: valid %d, %zu boundary edges, euler %ld",
+              tessel_mesh_report_valid(&rb), rb.boundary_edges, rb.euler);
+    /* Triangles that are not a manifold mesh are refused. */
+    uint32_t bad[6] = {all.t[0], all.t[1], all.t[2], all.t[0], all.t[1], all.t[2]};
+    p.existing = bad;
+    p.existing_count = 2;
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink2, NULL) == TESSEL_ERR_INVALID_ARG);
+    free(both);
+    free(cap);
+    free(all.t);
+    free(rest.t);
+    tessel_cloud_free(&c);
+}
+
+static int cancel_at_half(void *user, const char *stage, double fraction)
+{
+    (void)stage;
+    (void)user;
+    return fraction > 0.5;
+}
+
+/* Streaming: on a large closed surface most triangles leave memory long
+ * before the end, the sink sees them in batches, and everything adds up to
+ * a valid closed mesh; the sink's errors and cancellation stop the
+ * reconstruction. */
+static void test_streaming(void)
+{
+    tessel_cloud c;
+    CHECK(surf_sphere_fibonacci(&c, 100000, 0.2, 15) == TESSEL_OK);
+    tessel_greedy_params p = tessel_greedy_params_default();
+    sink_buf b = {0};
+    tessel_triangle_sink sink = {sink_emit, &b};
+    tessel_recon_summary sum;
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink, &sum) == TESSEL_OK);
+    CHECK(b.n == sum.triangles && b.batches > 10);
+    CHECK_MSG(sum.peak_held_triangles * 2 < sum.triangles, "held %zu of %zu",
+              sum.peak_held_triangles, sum.triangles);
+    tessel_mesh m = mesh_of(&c, b.t, b.n);
+    tessel_mesh_report rep = check_mesh(&m);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.components == 1);
+    CHECK(rep.boundary_edges * 1000 < rep.edges);
+    printf("%-22s %6zu points, %zu of %zu triangles held at most, %zu batches\n",
+           "streaming sphere", c.count, sum.peak_held_triangles, sum.triangles, b.batches);
+    sink_buf f = {0};
+    f.fail_with = TESSEL_ERR_IO;
+    tessel_triangle_sink fs = {sink_emit, &f};
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &fs, NULL) == TESSEL_ERR_IO);
+    tessel_callbacks cb = {cancel_at_half, NULL, NULL};
+    sink_buf d = {0};
+    tessel_triangle_sink ds = {sink_emit, &d};
+    CHECK(tessel_reconstruct_greedy(&c, &p, &cb, &ds, NULL) == TESSEL_ERR_CANCELLED);
+    free(b.t);
+    free(f.t);
+    free(d.t);
+    tessel_cloud_free(&c);
+}
+
+static int run_cli(const char *args)
+{
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "\"%s\" reconstruct %s > /dev/null 2>&1", TESSEL_CLI, args);
+    int rc = system(cmd);
+    return rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+static void test_cli(void)
+{
+    if (run_cli("--help") != 0) {
+        printf("tessel reconstruct is not in the CLI's command table: CLI test skipped\n");
+        return;
+    }
+    char dir[] = "/tmp/tessel_gp_XXXXXX";
+    if (!mkdtemp(dir)) {
+        CHECK(0);
+        return;
+    }
+    char in[64], out[64], args[256];
+    snprintf(in, sizeof in, "%s/in.ply", dir);
+    snprintf(out, sizeof out, "%s/out.ply", dir);
+    tessel_cloud c;
+    CHECK(surf_torus(&c, 1.0, 0.35, 0.06, 16) == TESSEL_OK);
+    CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
+    snprintf(args, sizeof args, "%s %s --json --mu 2.2 --max-angle 110", in, out);
+    CHECK(run_cli(args) == 0);
+    tessel_mesh m;
+    CHECK(tessel_mesh_read(&m, out, NULL, NULL) == TESSEL_OK);
+    tessel_mesh_report rep = check_mesh(&m);
+    CHECK(tessel_mesh_report_valid(&rep) && m.triangle_count > c.count);
+    tessel_mesh_free(&m);
+    snprintf(args, sizeof args, "%s %s --mu 0.5", in, out);
+    CHECK(run_cli(args) == 1);
+    snprintf(args, sizeof args, "%s %s --plane sideways", in, out);
+    CHECK(run_cli(args) == 1);
+    snprintf(args, sizeof args, "%s/missing.ply %s", dir, out);
+    CHECK(run_cli(args) == 2);
+    remove(in);
+    remove(out);
+    rmdir(dir);
+    tessel_cloud_free(&c);
+}
+
 int main(void)
 {
     test_closed_surfaces();
     test_open_and_hard();
+    test_deterministic();
+    test_duplicates_and_degenerate();
+    test_options();
+    test_existing();
+    test_streaming();
+    test_cli();
     return TEST_SUMMARY();
 }
