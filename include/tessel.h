@@ -664,9 +664,12 @@ TESSEL_API tessel_status tessel_reconstruct_greedy_mesh(const tessel_cloud *clou
  * surface reconstruction", section 5: when the data are a height field
  * (terrain, aerial LIDAR) or come from a scanner with one centre of
  * projection, the projection plane is fixed and the dexel array is
- * two-dimensional. One representative per dexel (section 5.1), neighbours
- * only from adjacent dexels, a sphere of influence slightly above the noise
- * level and no visibility or angle tests. See docs/fixed_plane.md. */
+ * two-dimensional. One representative per dexel (section 5.1): among the
+ * dexel's points whose depth (height, range) lies in the middle half of the
+ * dexel's depths, the one nearest the dexel's centre; an empty dexel next to
+ * a dexel with spare points takes the nearest of them. Neighbours only from
+ * adjacent dexels, a sphere of influence slightly above the noise level and
+ * no visibility or angle tests. See docs/fixed_plane.md. */
 typedef enum tessel_fixed_plane_mode {
     TESSEL_FIXED_PLANE_HEIGHT = 0, /* dexels on a plane (terrain, aerial LIDAR) */
     TESSEL_FIXED_PLANE_RANGE,      /* (theta, phi) dexels around a centre of
@@ -695,7 +698,8 @@ typedef struct tessel_fixed_plane_params {
                                   signed so that its z is >= 0: "up" for
                                   terrain); 0, 1, 2 onto the plane normal to
                                   +x, +y, +z */
-    uint32_t columns, rows;    /* height and range modes: dexel array size;
+    uint32_t columns, rows;    /* height and range modes: dexel array size
+                                  (range: columns in phi, rows in theta);
                                   both 0 (default) derives it from cell */
     double cell;               /* height mode: dexel edge, world units; range
                                   mode: dexel angular size, radians; 0
@@ -737,7 +741,10 @@ typedef struct tessel_fixed_plane_stats {
                                   point of a neighbouring dexel (height and
                                   range: a one-dexel sampling gap is not a
                                   hole) */
-    uint32_t columns, rows;    /* dexel array (grid) size */
+    uint32_t columns, rows;    /* dexel array (grid) size as stored; range
+                                  mode stores phi along the rows instead of
+                                  the columns when the input runs in theta
+                                  (scanner profiles) */
     int wrap_columns, wrap_rows; /* 1 when the last column (row) is joined to
                                   the first: a full 360 degree scan */
     double cell[2];            /* dexel size along columns and rows: world
