@@ -28,6 +28,7 @@ static const char fixed_help[] =
     "  --axis x|y|z|auto      height: project along this axis (default auto:\n"
     "                         the plane of least variance, normal up)\n"
     "  --grid WxH             height, range: W x H dexels over the data\n"
+    "                         (range: W in phi, H in theta)\n"
     "  --cell SIZE            height: dexel size in world units; range: dexel\n"
     "                         angle in degrees (default: from the density)\n"
     "  --points-per-dexel N   target of the automatic cell, >= 1 (default 3)\n"
