@@ -14,6 +14,7 @@ static const command commands[] = {
     {"reconstruct", cmd_reconstruct, "triangulate a point cloud (greedy projection by default)"},
     {"info", cmd_info, "describe a point cloud or mesh file"},
     {"convert", cmd_convert, "convert between file formats"},
+    {"normals", cmd_normals, "estimate consistently oriented normals"},
     {"smooth", cmd_smooth, "denoise a cloud by robust local plane fitting"},
     {"simplify", cmd_simplify, "reduce a cloud to one representative per cluster"},
     {"check", cmd_check, "check a mesh: manifold, orientation, intersections, distances"},
