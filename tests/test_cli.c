@@ -1,0 +1,209 @@
+/* The CLI's own behaviour: exit codes, error lines that name the file and
+ * the place for every bad file, --json, convert round trips through every
+ * writable format, normals, and no partial output on failure. */
+#include "test.h"
+#include "tessel.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdbool.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+static char tmpdir[256];
+
+/* Runs the CLI with args; stdout and stderr go to files in tmpdir.
+ * Returns the exit code (or -1 if it did not exit normally). */
+static int run(const char *args)
+{
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "%s %s >%s/out.txt 2>%s/err.txt", TESSEL_CLI, args, tmpdir,
+             tmpdir);
+    int st = system(cmd);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static char *slurp(const char *name)
+{
+    static char buf[65536];
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", tmpdir, name);
+    FILE *f = fopen(path, "rb");
+    size_t n = f ? fread(buf, 1, sizeof buf - 1, f) : 0;
+    if (f)
+        fclose(f);
+    buf[n] = '\0';
+    return buf;
+}
+
+/* Files in tmpdir other than the captured out/err: must be none after a
+ * failed write (no temporaries, no partial output). */
+static int stray_files(void)
+{
+    int n = 0;
+    DIR *d = opendir(tmpdir);
+    struct dirent *e;
+    while (d && (e = readdir(d)) != NULL) {
+        if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
+            strcmp(e->d_name, "out.txt") && strcmp(e->d_name, "err.txt") &&
+            strncmp(e->d_name, "keep_", 5))
+            n++;
+    }
+    if (d)
+        closedir(d);
+    return n;
+}
+
+static void test_usage(void)
+{
+    CHECK(run("--help") == 0 && strstr(slurp("out.txt"), "reconstruct"));
+    CHECK(run("") == 1);
+    CHECK(run("frobnicate") == 1 && strstr(slurp("err.txt"), "unknown command"));
+    CHECK(run("info") == 1);
+    CHECK(run("info --bogus x.ply") == 1 && strstr(slurp("err.txt"), "unknown option"));
+    CHECK(run("info --threads many x.ply") == 1);
+    CHECK(run("convert only_one.ply") == 1);
+    CHECK(run("convert --help") == 0 && strstr(slurp("out.txt"), "usage: tessel convert"));
+    CHECK(run("info /nonexistent/cloud.ply") == 2);
+    CHECK(strstr(slurp("err.txt"), "tessel: error: /nonexistent/cloud.ply: ") != NULL);
+}
+
+/* Every bad file gives exit 2 and one line "tessel: error: FILE: line N: ..."
+ * or "...: byte N: ...". */
+static void test_bad_files(void)
+{
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s/bad", TESSEL_TEST_DATA);
+    DIR *d = opendir(dir);
+    CHECK(d != NULL);
+    int count = 0;
+    struct dirent *e;
+    while (d && (e = readdir(d)) != NULL) {
+        if (e->d_name[0] == '.')
+            continue;
+        char args[1024], prefix[1024];
+        snprintf(args, sizeof args, "info %s/%s", dir, e->d_name);
+        int code = run(args);
+        const char *err = slurp("err.txt");
+        snprintf(prefix, sizeof prefix, "tessel: error: %s/%s: ", dir, e->d_name);
+        bool named = strncmp(err, prefix, strlen(prefix)) == 0;
+        const char *place = err + (named ? strlen(prefix) : 0);
+        bool located = strncmp(place, "line ", 5) == 0 || strncmp(place, "byte ", 5) == 0;
+        CHECK_MSG(code == 2 && named && located, "%s: exit %d, stderr '%s'", e->d_name, code,
+                  err);
+        count++;
+    }
+    if (d)
+        closedir(d);
+    CHECK(count >= 20);
+}
+
+/* A small cloud with normals written by the library, then converted by the
+ * CLI through each writable format and back: the same floats come back. */
+static void test_convert_round_trip(void)
+{
+    tessel_cloud c;
+    CHECK(tessel_cloud_alloc(&c, 200, 1, 0) == TESSEL_OK);
+    for (size_t i = 0; i < c.count; i++) {
+        double t = (double)i * 0.37;
+        c.xyz[3 * i] = (float)cos(t) * 1.25f;
+        c.xyz[3 * i + 1] = (float)sin(t) / 3.0f;
+        c.xyz[3 * i + 2] = (float)(t * 1e-3);
+        c.normals[3 * i + 2] = 1.0f;
+    }
+    char src[512];
+    snprintf(src, sizeof src, "%s/keep_src.ply", tmpdir);
+    CHECK(tessel_cloud_write(&c, src, NULL, NULL) == TESSEL_OK);
+    const char *exts[] = {"xyz", "csv", "obj", "off", "ply"};
+    for (size_t k = 0; k < sizeof exts / sizeof exts[0]; k++) {
+        char args[2048], mid[512], back[512];
+        snprintf(mid, sizeof mid, "%s/keep_mid.%s", tmpdir, exts[k]);
+        snprintf(back, sizeof back, "%s/keep_back.ply", tmpdir);
+        snprintf(args, sizeof args, "convert %s %s --quiet", src, mid);
+        CHECK_MSG(run(args) == 0, "convert to %s: %s", exts[k], slurp("err.txt"));
+        snprintf(args, sizeof args, "convert %s %s --quiet", mid, back);
+        CHECK_MSG(run(args) == 0, "convert from %s: %s", exts[k], slurp("err.txt"));
+        tessel_cloud r;
+        CHECK(tessel_cloud_read(&r, back, NULL, NULL) == TESSEL_OK);
+        bool same = r.count == c.count &&
+                    memcmp(r.xyz, c.xyz, c.count * 3 * sizeof(float)) == 0;
+        CHECK_MSG(same, "round trip through %s changed the points", exts[k]);
+        tessel_cloud_free(&r);
+        unlink(mid);
+        unlink(back);
+    }
+    /* STL holds triangles only: a cloud is refused with a clear message and
+     * no file. */
+    char args[1024];
+    snprintf(args, sizeof args, "convert %s %s/x.stl", src, tmpdir);
+    CHECK(run(args) == 3 && strstr(slurp("err.txt"), "triangles only") && stray_files() == 0);
+    /* Output errors: exit 3, nothing left behind. */
+    snprintf(args, sizeof args, "convert %s /nonexistent/dir/out.ply", src);
+    CHECK(run(args) == 3 && strstr(slurp("err.txt"), "/nonexistent/dir/out.ply"));
+    snprintf(args, sizeof args, "convert %s %s/out.las", src, tmpdir);
+    CHECK(run(args) == 1 && stray_files() == 0);
+    snprintf(args, sizeof args, "convert %s %s/out.unknownext", src, tmpdir);
+    CHECK(run(args) == 1 && stray_files() == 0);
+    /* --json summary on stdout. */
+    snprintf(args, sizeof args, "info %s --json", src);
+    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"points\": 200") &&
+          strstr(slurp("out.txt"), "\"normals\": true"));
+    tessel_cloud_free(&c);
+    unlink(src);
+}
+
+/* tessel normals on a sphere: unit normals pointing outward. */
+static void test_normals(void)
+{
+    tessel_cloud c;
+    const size_t n = 2000;
+    CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+    const double golden = 2.399963229728653;
+    for (size_t i = 0; i < n; i++) {
+        double z = 1.0 - 2.0 * ((double)i + 0.5) / (double)n, r = sqrt(1 - z * z);
+        c.xyz[3 * i] = (float)(r * cos(golden * (double)i));
+        c.xyz[3 * i + 1] = (float)(r * sin(golden * (double)i));
+        c.xyz[3 * i + 2] = (float)z;
+    }
+    char in[512], out[512], args[2048];
+    snprintf(in, sizeof in, "%s/keep_sphere.ply", tmpdir);
+    snprintf(out, sizeof out, "%s/keep_sphere_n.ply", tmpdir);
+    CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
+    snprintf(args, sizeof args, "normals %s %s -k 12 --threads 2 --json", in, out);
+    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"oriented\": true"));
+    tessel_cloud r;
+    CHECK(tessel_cloud_read(&r, out, NULL, NULL) == TESSEL_OK);
+    size_t outward = 0;
+    for (size_t i = 0; r.normals && i < r.count; i++) {
+        const float *p = r.xyz + 3 * i, *m = r.normals + 3 * i;
+        if (p[0] * m[0] + p[1] * m[1] + p[2] * m[2] > 0.95f)
+            outward++;
+    }
+    CHECK_MSG(r.normals && outward == n, "%zu of %zu normals outward", outward, n);
+    tessel_cloud_free(&r);
+    tessel_cloud_free(&c);
+    snprintf(args, sizeof args, "normals %s %s -k 2", in, out);
+    CHECK(run(args) == 1);
+    unlink(in);
+    unlink(out);
+}
+
+int main(void)
+{
+    snprintf(tmpdir, sizeof tmpdir, "/tmp/tessel_test_cli_XXXXXX");
+    if (!mkdtemp(tmpdir)) {
+        perror("mkdtemp");
+        return 1;
+    }
+    test_usage();
+    test_bad_files();
+    test_convert_round_trip();
+    test_normals();
+    char cmd[600];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
+    if (system(cmd) != 0)
+        fprintf(stderr, "could not remove %s\n", tmpdir);
+    return TEST_SUMMARY();
+}
