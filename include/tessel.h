@@ -841,6 +841,17 @@ typedef struct tessel_smooth_params {
                                  with tessel_cloud_spacing() */
     int threads;              /* 0 = OpenMP default (honours
                                  OMP_NUM_THREADS) */
+    int quadric;              /* 1 (default): beyond the paper, Q(p) is
+                                 lifted from the robust plane onto a
+                                 weighted quadric height field fitted over
+                                 it (less shrinkage on curved parts);
+                                 0: the paper's plane */
+    double sigma_rho_later;   /* sigma_rho of the passes after the first,
+                                 multiple of h: the first pass has removed
+                                 most of the noise, so a tighter norm
+                                 rejects more; default 1 (> 0). Those
+                                 passes reuse the first pass's neighbours
+                                 (at their new positions) */
 } tessel_smooth_params;
 TESSEL_API tessel_smooth_params tessel_smooth_params_default(void);
 

@@ -44,7 +44,10 @@ typedef struct fit_ctl {
     double rmax;     /* neighbour cut-off, 3 sigma_w */
     double tol_t;    /* tolerance * h */
     double tol_n;    /* tolerance, radians */
+    double quad_max; /* largest height of the quadric above the plane */
+    double ridge;    /* penalty on the quadric's curvature terms */
     uint32_t k, max_iterations, min_neighbors;
+    int quadric;     /* 1: height from the quadric over the plane */
 } fit_ctl;
 
 struct tessel_projector {
@@ -63,13 +66,15 @@ tessel_smooth_params tessel_smooth_params_default(void)
     memset(&p, 0, sizeof p);
     p.k = 24;
     p.sigma_rho = 2.0;
-    p.sigma_w = 2.5;
-    p.passes = 2;
+    p.sigma_w = 3.0;
+    p.passes = 3;
     p.max_iterations = 20;
     p.tolerance = 1e-3;
     p.min_neighbors = 6;
     p.spacing = 0.0;
     p.threads = 0;
+    p.quadric = 1;
+    p.sigma_rho_later = 1.0;
     return p;
 }
 
@@ -90,24 +95,34 @@ static tessel_status check_params(const tessel_smooth_params *p)
         return TESSEL_ERR_INVALID_ARG;
     if (!(p->spacing >= 0.0) || !isfinite(p->spacing))
         return TESSEL_ERR_INVALID_ARG;
+    if (p->quadric != 0 && p->quadric != 1)
+        return TESSEL_ERR_INVALID_ARG;
+    if (!(p->sigma_rho_later > 0.0) || !isfinite(p->sigma_rho_later))
+        return TESSEL_ERR_INVALID_ARG;
     return TESSEL_OK;
 }
 
-static void ctl_setup(fit_ctl *f, const tessel_smooth_params *p, double h)
+/* Ridge penalty of the quadric's curvature terms (see quadric_height). */
+#define QUAD_RIDGE 10.0
+
+static void ctl_setup(fit_ctl *f, const tessel_smooth_params *p, double h, double sigma_rho)
 {
-    double sw = p->sigma_w * h, sr = p->sigma_rho * h;
+    double sw = p->sigma_w * h, sr = sigma_rho * h;
     f->h = h;
     f->inv_2sw2 = 1.0 / (2.0 * sw * sw);
     f->inv_2sr2 = 1.0 / (2.0 * sr * sr);
     f->rmax = 3.0 * sw;
     f->tol_t = p->tolerance * h;
     f->tol_n = p->tolerance;
+    f->quad_max = 2.0 * sr;
+    f->ridge = QUAD_RIDGE;
+    f->quadric = p->quadric;
     f->k = p->k;
     f->max_iterations = p->max_iterations;
     f->min_neighbors = p->min_neighbors;
 }
 
-/* ---- plane fitting ---- */
+/* ---- fitting ---- */
 
 /* Unit eigenvector of the smallest eigenvalue of the symmetric matrix
  * m = {a00, a01, a02, a11, a12, a22}. Returns false when no plane is
@@ -160,14 +175,88 @@ static bool smallest_eigenvector(const double m[6], double n[3])
     return true;
 }
 
-/* Plane of the weighted points from their moments: W = sum om,
- * s = sum om d, mm = sum om d d^T (upper triangle). Writes the centroid c
- * and the unit normal n. Moments about the query point, which lies within
- * the neighbourhood, lose nothing to cancellation at these scales. */
+/* e^x for x <= 0 in single precision, in a form that vectorises (no libm
+ * call): 2^(x log2 e) split into an integer power, put into the exponent
+ * bits, and 2^f for |f| <= 1/2 by its degree-6 Taylor polynomial
+ * (truncation < 1.3e-7). Relative error below 4e-7 for x >= -80 (measured
+ * against exp on 10^7 arguments); below -80 it returns e^-80 ~ 2e-35, which
+ * is zero for every sum it enters. Weights need no more precision. */
+static inline float fast_exp(float x)
+{
+    x = x < -80.0f ? -80.0f : x;
+    float y = x * 1.44269504f;
+    float r = (y + 12582912.0f) - 12582912.0f; /* nearest integer: 1.5 * 2^23 */
+    float f = y - r;
+    float p = 1.54035304e-4f;
+    p = p * f + 1.33335581e-3f;
+    p = p * f + 9.61812911e-3f;
+    p = p * f + 5.55041087e-2f;
+    p = p * f + 2.40226507e-1f;
+    p = p * f + 6.93147181e-1f;
+    p = p * f + 1.0f;
+    uint32_t b;
+    memcpy(&b, &p, sizeof b);
+    b += (uint32_t)(int32_t)r << 23;
+    memcpy(&p, &b, sizeof p);
+    return p;
+}
+
+/* Neighbours of one query as offsets from it, structure of arrays, padded
+ * with zeros to a multiple of FIT_LANES: the sums below run over FIT_LANES
+ * independent partial sums, which compilers vectorise without reordering
+ * any addition (so the result is the same bits on every run), and add them
+ * up in a fixed order. */
+#define FIT_LANES 8
+#define FIT_CAP (SMOOTH_MAX_K + FIT_LANES)
+typedef struct fit_buf {
+    size_t m;      /* neighbours that enter the fit (within the cut-off) */
+    size_t filled; /* slots holding coordinates (>= m): the k nearest */
+    size_t mp;     /* m padded to a multiple of FIT_LANES */
+    float x[FIT_CAP], y[FIT_CAP], z[FIT_CAP];
+    float w[FIT_CAP];  /* Gaussian distance weights */
+    float om[FIT_CAP]; /* current IRLS weights */
+} fit_buf;
+
+static void fit_pad(fit_buf *b)
+{
+    b->mp = (b->m + FIT_LANES - 1) / FIT_LANES * FIT_LANES;
+    for (size_t j = b->filled; j < b->mp; j++)
+        b->x[j] = b->y[j] = b->z[j] = 0.0f;
+}
+
+/* Weighted moments about the query: W, sums of om d and of om d d^T. */
+static void plane_moments(const fit_buf *b, double W[1], double s[3], double mm[6])
+{
+    float acc[10][FIT_LANES];
+    memset(acc, 0, sizeof acc);
+    for (size_t j0 = 0; j0 < b->mp; j0 += FIT_LANES)
+        for (int l = 0; l < FIT_LANES; l++) {
+            size_t j = j0 + (size_t)l;
+            float o = b->om[j], x = b->x[j], y = b->y[j], z = b->z[j];
+            float ox = o * x, oy = o * y, oz = o * z;
+            acc[0][l] += o;
+            acc[1][l] += ox, acc[2][l] += oy, acc[3][l] += oz;
+            acc[4][l] += ox * x, acc[5][l] += ox * y, acc[6][l] += ox * z;
+            acc[7][l] += oy * y, acc[8][l] += oy * z, acc[9][l] += oz * z;
+        }
+    double t[10];
+    for (int i = 0; i < 10; i++) {
+        double v = 0.0;
+        for (int l = 0; l < FIT_LANES; l++)
+            v += (double)acc[i][l];
+        t[i] = v;
+    }
+    W[0] = t[0];
+    s[0] = t[1], s[1] = t[2], s[2] = t[3];
+    for (int i = 0; i < 6; i++)
+        mm[i] = t[4 + i];
+}
+
+/* Plane of the weighted neighbours: centroid c and unit normal n. */
 static bool plane_from_moments(double W, const double s[3], const double mm[6], double c[3],
                                double n[3])
 {
-    if (!(W > 1e-300))
+    if (!(W > 1e-30))
         return false;
     c[0] = s[0] / W, c[1] = s[1] / W, c[2] = s[2] / W;
     double cov[6] = {mm[0] / W - c[0] * c[0], mm[1] / W - c[0] * c[1], mm[2] / W - c[0] * c[2],
@@ -175,38 +264,138 @@ static bool plane_from_moments(double W, const double s[3], const double mm[6], 
     return smallest_eigenvector(cov, n);
 }
 
-static inline void moments_add(double o, const double d[3], double *W, double s[3],
-                               double mm[6])
+/* Robust weights om = w exp(-h^2 / 2 sigma_rho^2) for the plane n.d = t. */
+static void plane_weights(fit_buf *b, const double n[3], double t, float inv_2sr2)
 {
-    *W += o;
-    double ox = o * d[0], oy = o * d[1], oz = o * d[2];
-    s[0] += ox, s[1] += oy, s[2] += oz;
-    mm[0] += ox * d[0], mm[1] += ox * d[1], mm[2] += ox * d[2];
-    mm[3] += oy * d[1], mm[4] += oy * d[2], mm[5] += oz * d[2];
-}
-
-/* exp(-x) for x >= 0, in single precision: weights need no more, and
- * expf is about twice as fast as exp. */
-static inline double weight(double x)
-{
-    return (double)expf((float)-x);
-}
-
-/* The robust fit for one query from its neighbours d[j] (positions minus
- * the query, sorted by distance). On success writes the unit normal n and
- * the offset t (Q = q + t n) and the IRLS iterations; w is scratch of m
- * doubles. Returns false when there is no fit (too few neighbours, or all
- * of them on a line). */
-static bool robust_fit(const fit_ctl *f, const double (*d)[3], size_t m, double *w, double n[3],
-                       double *t_out, uint32_t *iterations)
-{
-    if (m < f->min_neighbors)
-        return false;
-    double W = 0.0, s[3] = {0, 0, 0}, mm[6] = {0, 0, 0, 0, 0, 0}, c[3];
-    for (size_t j = 0; j < m; j++) {
-        w[j] = weight(tsl_dot(d[j], d[j]) * f->inv_2sw2);
-        moments_add(w[j], d[j], &W, s, mm);
+    const float nx = (float)n[0], ny = (float)n[1], nz = (float)n[2], tf = (float)t;
+    for (size_t j = 0; j < b->mp; j++) {
+        float hq = nx * b->x[j] + ny * b->y[j] + nz * b->z[j] - tf;
+        b->om[j] = b->w[j] * fast_exp(-(hq * hq) * inv_2sr2);
     }
+}
+
+/* Solves the symmetric positive definite 6x6 system a x = r (Cholesky);
+ * false when a is not positive definite to working precision. */
+static bool solve6(double a[6][6], double r[6], double x[6])
+{
+    double L[6][6];
+    for (int i = 0; i < 6; i++)
+        for (int j = 0; j <= i; j++) {
+            double s = a[i][j];
+            for (int k = 0; k < j; k++)
+                s -= L[i][k] * L[j][k];
+            if (i == j) {
+                if (!(s > 1e-12 * a[i][i]))
+                    return false;
+                L[i][i] = sqrt(s);
+            } else {
+                L[i][j] = s / L[j][j];
+            }
+        }
+    double y[6];
+    for (int i = 0; i < 6; i++) {
+        double s = r[i];
+        for (int k = 0; k < i; k++)
+            s -= L[i][k] * y[k];
+        y[i] = s / L[i][i];
+    }
+    for (int i = 5; i >= 0; i--) {
+        double s = y[i];
+        for (int k = i + 1; k < 6; k++)
+            s -= L[k][i] * x[k];
+        x[i] = s / L[i][i];
+    }
+    return true;
+}
+
+/* Beyond the paper: the height of the surface above the robust plane at
+ * the query, from a weighted least-squares quadric
+ *     z = a u^2 + b uv + c v^2 + d u + e v + f
+ * over the plane (u, v in the plane through the query's projection, in
+ * units of h; z the height above the plane), with the plane's final robust
+ * weights. Q(p) then lies f above the plane's point instead of on it, which
+ * removes the plane's bias on curved parts (about r^2 / 2R for a
+ * neighbourhood of radius r on a surface of radius R). The curvature
+ * terms carry a ridge penalty of QUAD_RIDGE times the total weight (in h
+ * units), which keeps noisy flat neighbourhoods near the plane. Returns
+ * false (use the plane) when the system is singular. */
+static bool quadric_height(const fit_buf *b, const double n[3], double t, double inv_h,
+                           double ridge, double *f_out)
+{
+    /* An orthonormal frame (e1, e2, n), e1 scaled by 1/h. */
+    double a[3] = {0, 0, 0}, e1[3], e2[3];
+    a[fabs(n[0]) < 0.6 ? 0 : 1] = 1.0;
+    tsl_cross(a, n, e1);
+    double l = inv_h / tsl_norm(e1);
+    e1[0] *= l, e1[1] *= l, e1[2] *= l;
+    tsl_cross(n, e1, e2); /* |e2| = |e1| = 1/h */
+    const float ux = (float)e1[0], uy = (float)e1[1], uz = (float)e1[2];
+    const float vx = (float)e2[0], vy = (float)e2[1], vz = (float)e2[2];
+    const float nx = (float)n[0], ny = (float)n[1], nz = (float)n[2], tf = (float)t;
+    /* 15 moments of o u^i v^j (i + j <= 4) and 6 of o z u^i v^j. */
+    float acc[21][FIT_LANES];
+    memset(acc, 0, sizeof acc);
+    for (size_t j0 = 0; j0 < b->mp; j0 += FIT_LANES)
+        for (int k = 0; k < FIT_LANES; k++) {
+            size_t j = j0 + (size_t)k;
+            float x = b->x[j], y = b->y[j], zz = b->z[j], o = b->om[j];
+            float u = ux * x + uy * y + uz * zz, v = vx * x + vy * y + vz * zz;
+            float z = nx * x + ny * y + nz * zz - tf;
+            float ou = o * u, ov = o * v, ouu = ou * u, ouv = ou * v, ovv = ov * v;
+            acc[0][k] += o, acc[1][k] += ou, acc[2][k] += ov;
+            acc[3][k] += ouu, acc[4][k] += ouv, acc[5][k] += ovv;
+            acc[6][k] += ouu * u, acc[7][k] += ouu * v, acc[8][k] += ouv * v;
+            acc[9][k] += ovv * v;
+            acc[10][k] += ouu * u * u, acc[11][k] += ouu * u * v, acc[12][k] += ouu * v * v;
+            acc[13][k] += ouv * v * v, acc[14][k] += ovv * v * v;
+            float oz = o * z;
+            acc[15][k] += oz, acc[16][k] += oz * u, acc[17][k] += oz * v;
+            acc[18][k] += oz * u * u, acc[19][k] += oz * u * v, acc[20][k] += oz * v * v;
+        }
+    double s[21];
+    for (int i = 0; i < 21; i++) {
+        double v = 0.0;
+        for (int k = 0; k < FIT_LANES; k++)
+            v += (double)acc[i][k];
+        s[i] = v;
+    }
+    /* Unknowns (a, b, c, d, e, f); moment indices: 1, u, v, uu, uv, vv,
+     * uuu, uuv, uvv, vvv, uuuu, uuuv, uuvv, uvvv, vvvv. */
+    double W = s[0], M[6][6] = {
+                         {s[10], s[11], s[12], s[6], s[7], s[3]},
+                         {s[11], s[12], s[13], s[7], s[8], s[4]},
+                         {s[12], s[13], s[14], s[8], s[9], s[5]},
+                         {s[6], s[7], s[8], s[3], s[4], s[1]},
+                         {s[7], s[8], s[9], s[4], s[5], s[2]},
+                         {s[3], s[4], s[5], s[1], s[2], s[0]},
+                     };
+    double r[6] = {s[18], s[19], s[20], s[16], s[17], s[15]}, x[6];
+    for (int i = 0; i < 3; i++)
+        M[i][i] += ridge * W;
+    if (!(W > 1e-30) || !solve6(M, r, x))
+        return false;
+    *f_out = x[5];
+    return true;
+}
+
+/* The robust fit for one query from its neighbours (offsets, sorted by
+ * distance). On success writes the unit normal n and the offset t
+ * (Q = q + t n) and the IRLS iterations. Returns false when there is no
+ * fit (too few neighbours, or all of them on a line). */
+static bool robust_fit(const fit_ctl *f, fit_buf *b, double n[3], double *t_out,
+                       uint32_t *iterations)
+{
+    if (b->m < f->min_neighbors)
+        return false;
+    fit_pad(b);
+    const float inv_2sw2 = (float)f->inv_2sw2;
+    for (size_t j = 0; j < b->mp; j++) {
+        float d2 = b->x[j] * b->x[j] + b->y[j] * b->y[j] + b->z[j] * b->z[j];
+        b->w[j] = j < b->m ? fast_exp(-d2 * inv_2sw2) : 0.0f;
+        b->om[j] = b->w[j];
+    }
+    double W, s[3], mm[6], c[3];
+    plane_moments(b, &W, s, mm);
     if (!plane_from_moments(W, s, mm, c, n))
         return false;
     double t = tsl_dot(n, c);
@@ -214,15 +403,11 @@ static bool robust_fit(const fit_ctl *f, const double (*d)[3], size_t m, double 
     /* IRLS: reweight by the robust norm's influence exp(-h^2 / 2 sr^2) and
      * refit. A step whose weights collapse keeps the previous plane. */
     uint32_t it = 0;
+    const float inv_2sr2 = (float)f->inv_2sr2;
     while (it < f->max_iterations) {
         it++;
-        W = 0.0;
-        memset(s, 0, sizeof s);
-        memset(mm, 0, sizeof mm);
-        for (size_t j = 0; j < m; j++) {
-            double hq = tsl_dot(n, d[j]) - t;
-            moments_add(w[j] * weight(hq * hq * f->inv_2sr2), d[j], &W, s, mm);
-        }
+        plane_weights(b, n, t, inv_2sr2);
+        plane_moments(b, &W, s, mm);
         double n2[3];
         if (!plane_from_moments(W, s, mm, c, n2))
             break;
@@ -236,6 +421,13 @@ static bool robust_fit(const fit_ctl *f, const double (*d)[3], size_t m, double 
         if (done)
             break;
     }
+    if (f->quadric) {
+        /* Weights of the final plane, then the height above it. */
+        plane_weights(b, n, t, inv_2sr2);
+        double hq;
+        if (quadric_height(b, n, t, 1.0 / f->h, f->ridge, &hq) && fabs(hq) <= f->quad_max)
+            t += hq;
+    }
     *t_out = t;
     *iterations = it;
     return true;
@@ -244,11 +436,16 @@ static bool robust_fit(const fit_ctl *f, const double (*d)[3], size_t m, double 
 /* The normal of an unfit point: smallest-eigenvalue direction of the plain
  * covariance of its neighbours (Jacobi yields a unit vector even for
  * coincident points, where the direction is arbitrary). */
-static void plain_normal(const double (*d)[3], size_t m, double n[3])
+static void plain_normal(const fit_buf *b, double n[3])
 {
     double W = 0.0, s[3] = {0, 0, 0}, mm[6] = {0, 0, 0, 0, 0, 0}, c[3] = {0, 0, 0};
-    for (size_t j = 0; j < m; j++)
-        moments_add(1.0, d[j], &W, s, mm);
+    for (size_t j = 0; j < b->filled; j++) {
+        double d[3] = {b->x[j], b->y[j], b->z[j]};
+        W += 1.0;
+        s[0] += d[0], s[1] += d[1], s[2] += d[2];
+        mm[0] += d[0] * d[0], mm[1] += d[0] * d[1], mm[2] += d[0] * d[2];
+        mm[3] += d[1] * d[1], mm[4] += d[1] * d[2], mm[5] += d[2] * d[2];
+    }
     if (W > 0.0)
         c[0] = s[0] / W, c[1] = s[1] / W, c[2] = s[2] / W;
     double a[9], w[3], v[9];
@@ -265,11 +462,11 @@ static void plain_normal(const double (*d)[3], size_t m, double n[3])
 /* Sign convention (returns true when it flipped n): agree with the nearest
  * cloud point's normal when the cloud has normals, else face the viewpoint
  * when there is one. */
-static bool orient(const float *normals, const float *nearest_normal, int has_viewpoint,
-                   const double viewpoint[3], const float q[3], double n[3])
+static bool orient(const float *nearest_normal, int has_viewpoint, const double viewpoint[3],
+                   const float q[3], double n[3])
 {
     double ref[3];
-    if (normals) {
+    if (nearest_normal) {
         tsl_load(nearest_normal, ref);
     } else if (has_viewpoint) {
         ref[0] = viewpoint[0] - q[0];
@@ -285,20 +482,18 @@ static bool orient(const float *normals, const float *nearest_normal, int has_vi
     return false;
 }
 
-/* Fit, orient and write one result. d holds the all_m neighbours found
- * (sorted by distance), of which the first m are within the cut-off.
- * Returns true when fitted. */
-static bool solve_one(const fit_ctl *f, const float q[3], const double (*d)[3], size_t m,
-                      size_t all_m, const float *normals, const float *nearest_normal,
-                      int has_viewpoint, const double viewpoint[3], double *scratch,
+/* Fit, orient and write one result (b as described at fit_buf). Returns
+ * true when fitted. */
+static bool solve_one(const fit_ctl *f, const float q[3], fit_buf *b,
+                      const float *nearest_normal, int has_viewpoint, const double viewpoint[3],
                       float out[3], float normal[3], uint32_t *iterations)
 {
     double n[3], t = 0.0;
     uint32_t its = 0;
-    bool fit = robust_fit(f, d, m, scratch, n, &t, &its);
+    bool fit = robust_fit(f, b, n, &t, &its);
     if (!fit)
-        plain_normal(d, all_m, n);
-    if (orient(normals, nearest_normal, has_viewpoint, viewpoint, q, n))
+        plain_normal(b, n);
+    if (orient(nearest_normal, has_viewpoint, viewpoint, q, n))
         t = -t; /* t is the offset along n */
     if (fit) {
         out[0] = (float)(q[0] + t * n[0]);
@@ -312,7 +507,6 @@ static bool solve_one(const fit_ctl *f, const float q[3], const double (*d)[3], 
     *iterations = its;
     return fit;
 }
-
 /* ---- the projector ---- */
 
 /* The spacing to use: the params' one, or the cloud's estimate. */
@@ -378,7 +572,7 @@ tessel_status tessel_projector_create(tessel_projector **projector, const tessel
         for (int i = 0; i < 3; i++)
             pr->viewpoint[i] = cloud->viewpoint[i] - cloud->offset[i];
     }
-    ctl_setup(&pr->ctl, &p, h);
+    ctl_setup(&pr->ctl, &p, h, p.sigma_rho);
     *projector = pr;
     return TESSEL_OK;
 }
@@ -401,7 +595,7 @@ tessel_status tessel_project(const tessel_projector *pr, const float q[3], float
 {
     uint32_t idx[SMOOTH_MAX_K];
     float d2[SMOOTH_MAX_K];
-    double d[SMOOTH_MAX_K][3], scratch[SMOOTH_MAX_K];
+    fit_buf b;
 
     if (iterations)
         *iterations = 0;
@@ -413,15 +607,16 @@ tessel_status tessel_project(const tessel_projector *pr, const float q[3], float
     float r2 = (float)(f->rmax * f->rmax);
     for (size_t j = 0; j < all_m; j++) {
         const float *x = pr->xyz + 3 * (size_t)idx[j];
-        d[j][0] = (double)x[0] - q[0];
-        d[j][1] = (double)x[1] - q[1];
-        d[j][2] = (double)x[2] - q[2];
+        b.x[j] = x[0] - q[0];
+        b.y[j] = x[1] - q[1];
+        b.z[j] = x[2] - q[2];
         m += d2[j] <= r2;
     }
+    b.m = m;
+    b.filled = all_m;
     const float *nn = pr->normals ? pr->normals + 3 * (size_t)idx[0] : NULL;
     uint32_t its;
-    bool fit = solve_one(f, q, (const double(*)[3])d, m, all_m, pr->normals, nn,
-                         pr->has_viewpoint, pr->viewpoint, scratch, out, normal, &its);
+    bool fit = solve_one(f, q, &b, nn, pr->has_viewpoint, pr->viewpoint, out, normal, &its);
     if (iterations)
         *iterations = its;
     return fit ? TESSEL_OK : TESSEL_ERR_TOO_FEW_POINTS;
@@ -830,26 +1025,47 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
 /* Points per progress report / cancellation check (at least). */
 #define SMOOTH_CHUNK ((size_t)1 << 16)
 
+/* One smoothing run. Everything is indexed by sorted position (the grid's
+ * order: points of a cell side by side, cells in Morton order), so that
+ * the neighbours of nearby points are nearby in memory. */
 typedef struct pass_ctx {
     const fit_ctl *f;
     const cell_grid *g;
-    const float *normals; /* the current cloud's, by point index; or NULL */
+    const float *cur_xyz;  /* positions this pass reads, by sorted position */
+    const float *ref_nrm;  /* orientation reference by sorted position, or
+                              NULL */
     int has_viewpoint;
     double viewpoint[3];
     float *out_xyz, *out_nrm;
+    uint32_t *nb;  /* k neighbour slots (sorted positions) per point */
+    uint16_t *cnt; /* neighbours per point */
 } pass_ctx;
 
-/* Smooths the points of cell ci, with b as scratch. Adds to the
- * counters. */
-static void smooth_cell(const pass_ctx *x, block *b, size_t ci, size_t *unfit, size_t *unconv,
-                        uint64_t *iters)
+typedef struct pass_count {
+    size_t unfit, unconverged;
+    uint64_t iterations;
+} pass_count;
+
+static void count_fit(pass_count *c, bool fit, uint32_t its, uint32_t max_iterations)
+{
+    if (!fit) {
+        c->unfit++;
+    } else {
+        c->iterations += its;
+        c->unconverged += its >= max_iterations;
+    }
+}
+
+/* First pass over the points of cell ci: finds the k nearest neighbours
+ * within the cut-off (recorded for the later passes) and smooths. b is
+ * scratch. */
+static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pass_count *pc)
 {
     const cell_grid *g = x->g;
     const fit_ctl *f = x->f;
     uint32_t run1[2 * 27];
     size_t n1 = 0;
     topk t;
-    double d[SMOOTH_MAX_K][3], scratch[SMOOTH_MAX_K];
     const float r2max = (float)(f->rmax * f->rmax);
 
     uint32_t cc[3];
@@ -904,23 +1120,46 @@ static void smooth_cell(const pass_ctx *x, block *b, size_t ci, size_t *unfit, s
                 break;
             topk_ring(&t, g, q, cc, ring + 1, r2max);
         }
+        uint32_t *nb = x->nb + (size_t)s * f->k;
         for (size_t j = 0; j < t.cnt; j++) {
             const float *p = g->sxyz + 3 * (size_t)t.pos[j];
-            d[j][0] = (double)p[0] - q[0];
-            d[j][1] = (double)p[1] - q[1];
-            d[j][2] = (double)p[2] - q[2];
+            fb->x[j] = p[0] - q[0];
+            fb->y[j] = p[1] - q[1];
+            fb->z[j] = p[2] - q[2];
+            nb[j] = t.pos[j];
         }
-        uint32_t id = g->perm[s], its;
-        const float *nn = x->normals ? x->normals + 3 * (size_t)t.id[0] : NULL;
-        bool fit = solve_one(f, q, (const double(*)[3])d, t.cnt, t.cnt, x->normals, nn,
-                             x->has_viewpoint, x->viewpoint, scratch,
-                             x->out_xyz + 3 * (size_t)id, x->out_nrm + 3 * (size_t)id, &its);
-        if (!fit) {
-            (*unfit)++;
-        } else {
-            *iters += its;
-            *unconv += its >= f->max_iterations;
+        x->cnt[s] = (uint16_t)t.cnt;
+        fb->m = fb->filled = t.cnt;
+        uint32_t its;
+        const float *nn = x->ref_nrm && t.cnt ? x->ref_nrm + 3 * (size_t)t.pos[0] : NULL;
+        bool fit = solve_one(f, q, fb, nn, x->has_viewpoint, x->viewpoint,
+                             x->out_xyz + 3 * (size_t)s, x->out_nrm + 3 * (size_t)s, &its);
+        count_fit(pc, fit, its, f->max_iterations);
+    }
+}
+
+/* A later pass for sorted positions [s0, s1): the first pass's neighbours
+ * at their current positions. */
+static void refit_range(const pass_ctx *x, fit_buf *fb, size_t s0, size_t s1, pass_count *pc)
+{
+    const fit_ctl *f = x->f;
+    const float *cur = x->cur_xyz;
+    for (size_t s = s0; s < s1; s++) {
+        const float *q = cur + 3 * s;
+        const uint32_t *nb = x->nb + s * f->k;
+        size_t m = x->cnt[s];
+        for (size_t j = 0; j < m; j++) {
+            const float *p = cur + 3 * (size_t)nb[j];
+            fb->x[j] = p[0] - q[0];
+            fb->y[j] = p[1] - q[1];
+            fb->z[j] = p[2] - q[2];
         }
+        fb->m = fb->filled = m;
+        uint32_t its;
+        const float *nn = x->ref_nrm && m ? x->ref_nrm + 3 * (size_t)nb[0] : NULL;
+        bool fit = solve_one(f, q, fb, nn, x->has_viewpoint, x->viewpoint, x->out_xyz + 3 * s,
+                             x->out_nrm + 3 * s, &its);
+        count_fit(pc, fit, its, f->max_iterations);
     }
 }
 
@@ -943,27 +1182,35 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     st = resolve_spacing(cloud, p.spacing, &h);
     if (st != TESSEL_OK)
         return st;
-    fit_ctl f;
-    ctl_setup(&f, &p, h);
+    fit_ctl f_first, f_later;
+    ctl_setup(&f_first, &p, h, p.sigma_rho);
+    ctl_setup(&f_later, &p, h, p.sigma_rho_later);
+    f_later.ridge = 0.0;
 
     const size_t n = cloud->count;
-    tessel_cloud cur;
     cell_grid g;
     memset(&g, 0, sizeof g);
-    st = tessel_cloud_copy(&cur, cloud);
-    if (st != TESSEL_OK)
-        return st;
-    float *next_xyz = tsl_alloc_array(n, 3 * sizeof(float));
-    float *next_nrm = tsl_alloc_array(n, 3 * sizeof(float));
-    if (!next_xyz || !next_nrm) {
+    float *buf[4] = {NULL, NULL, NULL, NULL}; /* xyz a, xyz b, normals a, b */
+    uint32_t *nb = NULL;
+    uint16_t *cnt = NULL;
+    float *ref0 = NULL;
+    tessel_cloud res;
+    memset(&res, 0, sizeof res);
+    for (int i = 0; i < 4; i++)
+        if (!(buf[i] = tsl_alloc_array(n, 3 * sizeof(float))))
+            st = TESSEL_ERR_NOMEM;
+    nb = tsl_alloc_array(n, (size_t)p.k * sizeof *nb);
+    cnt = tsl_alloc_array(n, sizeof *cnt);
+    if (!nb || !cnt)
         st = TESSEL_ERR_NOMEM;
-        goto fail;
-    }
+    if (st != TESSEL_OK)
+        goto done;
 
     pass_ctx x;
     memset(&x, 0, sizeof x);
-    x.f = &f;
     x.g = &g;
+    x.nb = nb;
+    x.cnt = cnt;
     if (cloud->has_viewpoint) {
         x.has_viewpoint = 1;
         for (int i = 0; i < 3; i++)
@@ -971,8 +1218,8 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     }
     int threads = tsl_threads(p.threads);
     (void)threads;
-    size_t unfit = 0, unconverged = 0;
-    uint64_t iter_sum = 0;
+    pass_count total = {0, 0, 0};
+
     /* Cells a little wider than the distance to the k-th neighbour, so
      * that the 27 cells around a point's own hold its neighbours for
      * nearly every point (wider cells cost more candidates, narrower ones
@@ -980,33 +1227,56 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
      * measures the points per occupied cell, m, which gives the surface
      * density (a surface crosses cells of side c with about 2/3 c^2 of its
      * area each), hence that distance. */
-    double cell = fmin(3.0 * h * sqrt((double)p.k / 24.0), f.rmax);
-    for (uint32_t pass = 0; pass < p.passes; pass++) {
-        st = grid_build(&g, cur.xyz, n, cell);
-        if (st == TESSEL_OK && pass == 0) {
-            double m = (double)n / (double)g.ncell;
-            double rk = g.c * sqrt((double)p.k * (2.0 / 3.0) / (3.141592653589793 * m));
-            rk = fmin(1.3 * rk, f.rmax);
-            if (fabs(rk - g.c) > 0.15 * g.c) {
-                grid_free(&g);
-                cell = rk;
-                st = grid_build(&g, cur.xyz, n, cell);
-            }
+    double cell = fmin(3.0 * h * sqrt((double)p.k / 24.0), f_first.rmax);
+    st = grid_build(&g, cloud->xyz, n, cell);
+    if (st == TESSEL_OK) {
+        double m = (double)n / (double)g.ncell;
+        double rk = g.c * sqrt((double)p.k * (2.0 / 3.0) / (3.141592653589793 * m));
+        rk = fmin(1.3 * rk, f_first.rmax);
+        if (fabs(rk - g.c) > 0.15 * g.c) {
+            grid_free(&g);
+            st = grid_build(&g, cloud->xyz, n, rk);
         }
-        if (st != TESSEL_OK)
-            goto fail;
-        x.normals = cur.normals;
-        x.out_xyz = next_xyz;
-        x.out_nrm = next_nrm;
-        size_t c0 = 0;
-        while (c0 < g.ncell) {
+    }
+    if (st != TESSEL_OK)
+        goto done;
+    if (cloud->normals) {
+        if (!(ref0 = tsl_alloc_array(n, 3 * sizeof(float)))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        for (size_t s = 0; s < n; s++)
+            memcpy(ref0 + 3 * s, cloud->normals + 3 * (size_t)g.perm[s], 3 * sizeof(float));
+    }
+
+    /* Pass 1: neighbour search on the input and the paper's operator (the
+     * projector's bits). Later passes: the same neighbours, moved. */
+    for (uint32_t pass = 0; pass < p.passes; pass++) {
+        int a = pass & 1;
+        x.f = pass == 0 ? &f_first : &f_later;
+        x.cur_xyz = pass == 0 ? g.sxyz : buf[1 - a];
+        x.ref_nrm = pass == 0 ? ref0 : buf[3 - a];
+        x.out_xyz = buf[a];
+        x.out_nrm = buf[2 + a];
+        size_t c0 = 0, s0 = 0;
+        for (;;) {
+            size_t c1 = c0, s1 = s0;
+            if (pass == 0) {
+                if (c0 >= g.ncell)
+                    break;
+                c1 = c0 + 1;
+                while (c1 < g.ncell && g.start[c1] - g.start[c0] < SMOOTH_CHUNK)
+                    c1++;
+                s0 = g.start[c0];
+            } else {
+                if (s0 >= n)
+                    break;
+                s1 = s0 + SMOOTH_CHUNK < n ? s0 + SMOOTH_CHUNK : n;
+            }
             st = tsl_progress(callbacks, "smooth",
-                              ((double)pass + (double)g.start[c0] / (double)n) / p.passes);
+                              ((double)pass + (double)s0 / (double)n) / p.passes);
             if (st != TESSEL_OK)
-                goto fail;
-            size_t c1 = c0 + 1;
-            while (c1 < g.ncell && g.start[c1] - g.start[c0] < SMOOTH_CHUNK)
-                c1++;
+                goto done;
             size_t c_unfit = 0, c_unconv = 0;
             uint64_t c_iter = 0;
             /* Integer reductions only: the sums do not depend on the order. */
@@ -1015,69 +1285,86 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
 #endif
             {
                 block b; /* per-thread scratch, ~20 KB */
+                fit_buf fb;
+                pass_count pc = {0, 0, 0};
                 b.m = 0;
+                if (pass == 0) {
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 16)
 #endif
-                for (size_t ci = c0; ci < c1; ci++)
-                    smooth_cell(&x, &b, ci, &c_unfit, &c_unconv, &c_iter);
+                    for (size_t ci = c0; ci < c1; ci++)
+                        search_cell(&x, &b, &fb, ci, &pc);
+                } else {
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+                    for (size_t s = s0; s < s1; s += 256)
+                        refit_range(&x, &fb, s, s + 256 < s1 ? s + 256 : s1, &pc);
+                }
+                c_unfit += pc.unfit;
+                c_unconv += pc.unconverged;
+                c_iter += pc.iterations;
             }
-            unfit += c_unfit;
-            unconverged += c_unconv;
-            iter_sum += c_iter;
+            total.unfit += c_unfit;
+            total.unconverged += c_unconv;
+            total.iterations += c_iter;
             c0 = c1;
-        }
-        grid_free(&g);
-        /* The new positions become the cloud of the next pass. */
-        float *tmp = cur.xyz;
-        cur.xyz = next_xyz;
-        next_xyz = tmp;
-        tmp = cur.normals;
-        cur.normals = next_nrm;
-        next_nrm = tmp;
-        if (!next_nrm && pass + 1 < p.passes) {
-            next_nrm = tsl_alloc_array(n, 3 * sizeof(float));
-            if (!next_nrm) {
-                st = TESSEL_ERR_NOMEM;
-                goto fail;
-            }
+            s0 = pass == 0 ? s0 : s1;
         }
     }
     st = tsl_progress(callbacks, "smooth", 1.0);
     if (st != TESSEL_OK)
-        goto fail;
+        goto done;
+
+    /* Back to the input's order. */
+    st = tessel_cloud_copy(&res, cloud);
+    if (st != TESSEL_OK)
+        goto done;
+    if (!res.normals && !(res.normals = tsl_alloc_array(n, 3 * sizeof(float)))) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    {
+        int a = (int)((p.passes - 1) & 1);
+        for (size_t s = 0; s < n; s++) {
+            size_t i = g.perm[s];
+            memcpy(res.xyz + 3 * i, buf[a] + 3 * s, 3 * sizeof(float));
+            memcpy(res.normals + 3 * i, buf[2 + a] + 3 * s, 3 * sizeof(float));
+        }
+    }
 
     if (stats) {
         /* Serial, so the floating-point sums do not depend on threads. */
         double sum2 = 0.0, mx = 0.0;
         for (size_t i = 0; i < n; i++) {
-            double a[3], b[3], e[3];
-            tsl_load(cloud->xyz + 3 * i, a);
-            tsl_load(cur.xyz + 3 * i, b);
-            tsl_sub(a, b, e);
+            double u[3], v[3], e[3];
+            tsl_load(cloud->xyz + 3 * i, u);
+            tsl_load(res.xyz + 3 * i, v);
+            tsl_sub(u, v, e);
             double d2 = tsl_dot(e, e);
             sum2 += d2;
             mx = d2 > mx ? d2 : mx;
         }
-        size_t fitted = (size_t)p.passes * n - unfit;
+        size_t fitted = (size_t)p.passes * n - total.unfit;
         stats->spacing = h;
-        stats->unfit = unfit;
-        stats->unconverged = unconverged;
-        stats->mean_iterations = fitted ? (double)iter_sum / (double)fitted : 0.0;
+        stats->unfit = total.unfit;
+        stats->unconverged = total.unconverged;
+        stats->mean_iterations = fitted ? (double)total.iterations / (double)fitted : 0.0;
         stats->rms_displacement = sqrt(sum2 / (double)n);
         stats->max_displacement = sqrt(mx);
     }
-    free(next_xyz);
-    free(next_nrm);
-    *out = cur;
-    return TESSEL_OK;
+    *out = res;
+    memset(&res, 0, sizeof res);
 
-fail:
+done:
     grid_free(&g);
-    free(next_xyz);
-    free(next_nrm);
-    tessel_cloud_free(&cur);
-    if (stats)
+    for (int i = 0; i < 4; i++)
+        free(buf[i]);
+    free(nb);
+    free(cnt);
+    free(ref0);
+    tessel_cloud_free(&res);
+    if (st != TESSEL_OK && stats)
         memset(stats, 0, sizeof *stats);
     return st;
 }
