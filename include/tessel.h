@@ -763,6 +763,9 @@ typedef struct tessel_fixed_plane_stats {
     size_t triangles_folded;   /* rejected as flipped or degenerate */
     size_t triangles_nonmanifold; /* removed so that every vertex's triangles
                                   form a single fan */
+    int poles_closed;          /* range and grid: 360-degree scans whose
+                                  first or last theta line is a small ring
+                                  round the pole get it closed (0..2) */
     size_t triangles;          /* triangles emitted */
     double seconds;            /* wall-clock time of the whole call */
     double seconds_dexels;     /* of which bucketing and representatives */

@@ -1844,6 +1844,142 @@ static tessel_status fp_emit(const fp_ctx *x, const uint8_t *codes,
 }
 
 /* ------------------------------------------------------------------------ */
+/* Polar caps                                                                */
+/* ------------------------------------------------------------------------ */
+
+/* A 360-degree (theta, phi) scan leaves a small hole at the pole: its first
+ * (or last) theta line is a ring of points round the pole, half a step away
+ * from it, that no block closes. When that ring is complete - every point
+ * present, every ring edge on a triangle - and small (within 1.5 theta steps
+ * of its mean direction), it is closed by a zig-zag strip across it.
+ * Every new edge passes the edge test and every new triangle faces the
+ * viewpoint the same way, else the ring stays open. The ring is convex seen
+ * from the viewpoint, so the strip neither folds nor crosses the blocks;
+ * each ring vertex gets the missing side of its fan. */
+static tessel_status fp_cap_ring(const fp_ctx *x, const uint8_t *codes, int along_rows,
+                                 int last, uint32_t *out, size_t *count)
+{
+    /* ring: column c0 (rows wrap) or row r0 (columns wrap) */
+    const uint32_t n = along_rows ? x->h : x->w;
+    const uint32_t line = last ? (along_rows ? x->w - 1 : x->h - 1) : 0;
+    const uint32_t next = last ? line - 1 : line + 1;
+    *count = 0;
+    fp_vrec *ring = tsl_alloc_array(n, sizeof(fp_vrec));
+    float *steps = tsl_alloc_array(n, sizeof(float));
+    uint32_t *ids = tsl_alloc_array(n, sizeof(uint32_t));
+    tessel_status status = ring && steps && ids ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    int ok = status == TESSEL_OK;
+    fp_ctx one = *x;
+    one.w = 1;
+    double mean[3] = {0, 0, 0};
+    for (uint32_t k = 0; ok && k < n; k++) {
+        size_t at = along_rows ? (size_t)k * x->w + line : (size_t)line * x->w + k;
+        size_t nb = along_rows ? (size_t)k * x->w + next : (size_t)next * x->w + k;
+        fp_vrec other;
+        ids[k] = x->idx[at];
+        one.idx = &x->idx[at];
+        fp_row(&one, 0, &ring[k]);
+        one.idx = &x->idx[nb];
+        fp_row(&one, 0, &other);
+        ok = ring[k].ok;
+        steps[k] = 0.0f;
+        if (ok && other.ok)
+            for (int j = 0; j < 3; j++)
+                steps[k] += (ring[k].d[j] - other.d[j]) * (ring[k].d[j] - other.d[j]);
+        for (int j = 0; ok && j < 3; j++)
+            mean[j] += ring[k].d[j];
+        /* the block holding ring edge k -> k+1 must have its triangle */
+        if (ok) {
+            size_t b;
+            unsigned want_t1;
+            if (along_rows) {
+                b = (size_t)k * x->cw + (last ? x->w - 2 : 0);
+                want_t1 = last ? 0u : 1u; /* c = 0: A-C; c = w-1: B-D */
+            } else {
+                b = (size_t)(last ? x->h - 2 : 0) * x->cw + k;
+                want_t1 = last ? 1u : 0u; /* r = 0: A-B; r = h-1: C-D */
+            }
+            unsigned code = codes[b], diag = code & 1u;
+            unsigned t = along_rows ? (diag ? 1u - want_t1 : want_t1) : want_t1;
+            ok = (code & (t ? FP_T1 : FP_T0)) != 0;
+        }
+    }
+    if (ok && tsl_normalize(mean)) {
+        float radius = 0.0f;
+        for (uint32_t k = 0; k < n; k++) {
+            float e = 0.0f;
+            for (int j = 0; j < 3; j++)
+                e += ((float)mean[j] - ring[k].d[j]) * ((float)mean[j] - ring[k].d[j]);
+            radius = e > radius ? e : radius;
+        }
+        fp_float_select(steps, n, n / 2);
+        float step = steps[n / 2]; /* squared chords */
+        ok = step > 0.0f && radius <= 2.25f * step;
+    } else {
+        ok = 0;
+    }
+    /* zig-zag strip: (l, l+1, r) and (l, r-1, r), all facing one way */
+    int sign = 0;
+    size_t m = 0;
+    for (uint32_t l = 0, r = n - 1, toggle = 1; ok && r - l >= 2; toggle ^= 1u) {
+        uint32_t a = l, b = toggle ? l + 1 : r - 1, c = r;
+        float len2;
+        ok = fp_edge(x, &ring[a], &ring[c], &len2) && fp_edge(x, &ring[b], &ring[a], &len2) &&
+             fp_edge(x, &ring[b], &ring[c], &len2);
+        if (!ok)
+            break;
+        fp_ctx probe = *x;
+        probe.orient = 1;
+        int s = fp_facing(&probe, &ring[a], &ring[b], &ring[c]) ? 1 : 0;
+        probe.orient = -1;
+        s = s ? 1 : fp_facing(&probe, &ring[a], &ring[b], &ring[c]) ? -1 : 0;
+        ok = s != 0 && (sign == 0 || s == sign);
+        sign = s;
+        /* counter-clockwise seen from the viewpoint */
+        out[3 * m] = ids[a];
+        out[3 * m + 1] = ids[s > 0 ? b : c];
+        out[3 * m + 2] = ids[s > 0 ? c : b];
+        m++;
+        if (toggle)
+            l++;
+        else
+            r--;
+    }
+    if (ok)
+        *count = m;
+    free(ring);
+    free(steps);
+    free(ids);
+    return status;
+}
+
+static tessel_status fp_cap_poles(const fp_ctx *x, const uint8_t *codes,
+                                  const tessel_triangle_sink *sink, size_t *triangles,
+                                  int *poles)
+{
+    *poles = 0;
+    if (x->kind != FP_RAY || (x->wrap_r == x->wrap_c) || x->w < 3 || x->h < 3)
+        return TESSEL_OK;
+    const int along_rows = x->wrap_r;
+    const uint32_t n = along_rows ? x->h : x->w;
+    uint32_t *tris = tsl_alloc_array((size_t)3 * n, sizeof(uint32_t));
+    if (!tris)
+        return TESSEL_ERR_NOMEM;
+    tessel_status status = TESSEL_OK;
+    for (int last = 0; last < 2 && status == TESSEL_OK; last++) {
+        size_t count = 0;
+        status = fp_cap_ring(x, codes, along_rows, last, tris, &count);
+        if (status == TESSEL_OK && count > 0) {
+            status = sink->emit(sink->user_data, tris, count);
+            *triangles += count;
+            (*poles)++;
+        }
+    }
+    free(tris);
+    return status;
+}
+
+/* ------------------------------------------------------------------------ */
 /* The whole reconstruction                                                  */
 /* ------------------------------------------------------------------------ */
 
@@ -2095,6 +2231,8 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
         status = fp_make_manifold(&x, codes, &st.triangles_nonmanifold);
     if (status == TESSEL_OK && codes)
         status = fp_emit(&x, codes, sink, callbacks, &st.triangles);
+    if (status == TESSEL_OK && codes)
+        status = fp_cap_poles(&x, codes, sink, &st.triangles, &st.poles_closed);
     if (status == TESSEL_OK)
         status = tsl_progress(callbacks, "triangles", 1.0);
     free(codes);

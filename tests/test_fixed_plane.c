@@ -731,6 +731,43 @@ static void test_grid_room(void)
     tessel_cloud_free(&c);
 }
 
+/* A full (theta, phi) scan leaves a ring of points half a step from each
+ * pole; both rings are closed, and the result stays valid. */
+static void test_poles(void)
+{
+    tessel_cloud c;
+    uint8_t *labels;
+    scan_room(&c, &labels, 100, 200, 0.004, 1, 0.0, 13);
+    tessel_fixed_plane_params p = tessel_fixed_plane_params_default();
+    p.mode = TESSEL_FIXED_PLANE_GRID;
+    tris m;
+    tessel_fixed_plane_stats st;
+    CHECK(run(&c, &p, &m, &st) == TESSEL_OK);
+    CHECK_MSG(st.poles_closed == 2, "%d poles closed", st.poles_closed);
+    topo t = check_topology(&m, c.count);
+    CHECK(topology_ok(&t));
+    check_scan_mesh(&c, labels, &m, 0.004, "poles");
+    check_mesh_valid(&c, &p, &m, "poles");
+    /* every ring point now has a closed fan: no boundary edge joins two
+     * points of the first column */
+    size_t ring_boundary = 0;
+    for (size_t i = 0; i < m.n; i++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = m.t[3 * i + k], b = m.t[3 * i + (k + 1) % 3];
+            if (a % 100 != 0 || b % 100 != 0)
+                continue;
+            int twin = 0;
+            for (size_t j = 0; j < m.n && !twin; j++)
+                for (int q = 0; q < 3; q++)
+                    twin |= m.t[3 * j + q] == b && m.t[3 * j + (q + 1) % 3] == a;
+            ring_boundary += !twin;
+        }
+    CHECK_MSG(ring_boundary == 0, "%zu open ring edges", ring_boundary);
+    free(m.t);
+    free(labels);
+    tessel_cloud_free(&c);
+}
+
 /* A pinhole depth camera looking along +z at a wall with a box in front,
  * NaN (missing) where nothing was returned. */
 static void test_grid_camera(void)
@@ -1150,6 +1187,7 @@ int main(void)
     test_uniform_sampling();
     test_range_room();
     test_grid_room();
+    test_poles();
     test_grid_camera();
     test_grid_diagonal();
     test_vertex_manifold();

@@ -292,13 +292,14 @@ int cmd_reconstruct_fixed(int argc, char **argv)
                "\"noise_estimated\": %d, \"margin\": %.9g, \"max_angle\": %g, "
                "\"cells\": %zu, \"cells_missing\": %zu, \"cells_open\": %zu, "
                "\"triangles_folded\": %zu, \"triangles_nonmanifold\": %zu, "
-               "\"triangles\": %zu, \"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
+               "\"poles_closed\": %d, \"triangles\": %zu, \"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
                "\"dexel_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f}\n",
                mode_name(fs.mode), n, fs.representatives, fs.dexels_filled, fs.columns, fs.rows,
                cu, cv, fs.wrap_columns, fs.wrap_rows, fs.axis[0], fs.axis[1], fs.axis[2],
                fs.viewpoint[0], fs.viewpoint[1], fs.viewpoint[2], fs.noise, fs.noise_estimated,
                fs.margin, o.p.max_angle, fs.cells, fs.cells_missing, fs.cells_open,
-               fs.triangles_folded, fs.triangles_nonmanifold, fs.triangles, t_read, fs.seconds,
+               fs.triangles_folded, fs.triangles_nonmanifold, fs.poles_closed, fs.triangles,
+               t_read, fs.seconds,
                fs.seconds_dexels, t_write, seconds);
     } else if (!common.quiet) {
         fprintf(stderr, "tessel: %s mode: %zu points, %u x %u %s", mode_name(fs.mode), n,
@@ -322,9 +323,13 @@ int cmd_reconstruct_fixed(int argc, char **argv)
                 fs.noise_estimated ? "estimated" : "given", fs.margin, o.p.max_angle);
         fprintf(stderr,
                 "tessel: %zu triangles; of %zu cells %zu lack points, %zu are cut by a "
-                "discontinuity; %zu triangles folded, %zu removed to keep vertices manifold\n",
+                "discontinuity; %zu triangles folded, %zu removed to keep vertices manifold",
                 fs.triangles, fs.cells, fs.cells_missing, fs.cells_open, fs.triangles_folded,
                 fs.triangles_nonmanifold);
+        if (fs.poles_closed)
+            fprintf(stderr, "; %d pole%s closed", fs.poles_closed,
+                    fs.poles_closed == 1 ? "" : "s");
+        fputc('\n', stderr);
         fprintf(stderr,
                 "tessel: wrote %s in %.2f s (read %.2f s, reconstruction %.3f s = %.2fM "
                 "points/s, write %.2f s)\n",
