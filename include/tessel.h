@@ -1066,6 +1066,8 @@ typedef struct tessel_front_stats {
     size_t seeds;            /* seed triangles (fronts started) */
     size_t bridges;          /* joins and splits of border loops */
     size_t hole_triangles;   /* triangles added by closing small holes */
+    size_t eroded_triangles; /* triangles removed around holes whose borders
+                                crossed, before closing them */
     size_t border_edges;     /* edges with one triangle in the result */
     size_t unused_points;    /* points on no triangle (isolated points,
                                 exact duplicates, points no front reached) */

@@ -55,6 +55,8 @@
 enum { EDGE_ACTIVE = 0, EDGE_DEAD = 1, EDGE_CLOSED = 2 };
 /* A dead edge is reconsidered when its neighbourhood changes, this often. */
 #define MAX_RETRIES 3
+/* retries value of border edges made by erode(): never revived. */
+#define ERODED 255
 /* Triangles that only close border edges (ears, holes) cannot make the
  * front grow over itself, so they get looser limits: the sharpest fold
  * along a shared edge, and the largest angle to the vertices' normals. */
@@ -109,6 +111,7 @@ typedef struct af {
     uint32_t *seen;  /* candidate already looked at in this search */
     uint32_t seen_now;
     float *star;     /* n*3 sums of the normals of each vertex's triangles */
+    uint8_t *eroded; /* on a loop that erode() already enlarged */
     float *ln;       /* n*3 unit surface normal lines (sign not meaningful) */
     int8_t *vsign;   /* orientation of ln taken by the surface, 0 if unused */
     /* derived parameters */
@@ -134,6 +137,7 @@ typedef struct af {
     tsl_trigrid grid;
     double max_edge; /* longest edge so far, for seed orientation searches */
     size_t used;     /* points on some triangle */
+    size_t deleted;  /* triangles removed by erode() (vertices NONE) */
     tessel_front_stats stats;
 } af;
 
@@ -653,7 +657,8 @@ static tessel_status revive(af *s, uint32_t v)
     uint32_t ids[2] = {s->vin[v], s->vout[v]};
     for (int i = 0; i < 2; i++) {
         uint32_t id = ids[i];
-        if (id == NONE || s->e[id].state != EDGE_DEAD || s->e[id].retries >= MAX_RETRIES)
+        if (id == NONE || s->e[id].state != EDGE_DEAD || s->e[id].retries >= MAX_RETRIES ||
+            s->e[id].retries == ERODED)
             continue;
         s->e[id].state = EDGE_ACTIVE;
         s->e[id].retries++;
@@ -990,6 +995,8 @@ static tessel_status check_triangle(af *s, const af_tri *x, const af_tri *other,
     for (size_t i = 0; i < s->grid.found_count; i++) {
         uint32_t t = s->grid.found[i];
         const af_tinfo *info = &s->ti[t];
+        if (s->tri[3 * (size_t)t] == NONE)
+            continue;
         if (info->hi[0] < lo[0] || info->lo[0] > hi[0] || info->hi[1] < lo[1] ||
             info->lo[1] > hi[1] || info->hi[2] < lo[2] || info->lo[2] > hi[2])
             continue;
@@ -1356,6 +1363,8 @@ static tessel_status seed_sign(af *s, const af_tri *x, int *sign)
         double best = INFINITY;
         for (size_t i = 0; i < s->grid.found_count; i++) {
             uint32_t t = s->grid.found[i];
+            if (s->tri[3 * (size_t)t] == NONE)
+                continue;
             double d2 = 0.0;
             for (int j = 0; j < 3; j++) {
                 double m = 0.0;
@@ -1475,16 +1484,20 @@ static uint32_t uf_find(uint32_t *parent, uint32_t x)
 }
 
 /* Closed components outward by signed volume; open ones by the points'
- * normals when there are any. Components are vertex-connected, which is
- * edge-connected since every vertex has a single fan. */
+ * normals when there are any, else by their signed volume about their
+ * centroid (right for nearly closed surfaces, arbitrary for flat ones).
+ * Components are vertex-connected, which is edge-connected since every
+ * vertex has a single fan. Removed triangles (vertices NONE) are skipped. */
 static tessel_status orient_components(af *s)
 {
     uint32_t *parent = tsl_alloc_array(s->n, sizeof *parent);
     double *score = tsl_calloc_array(s->n, sizeof *score);
-    uint32_t *open = tsl_calloc_array(s->n, sizeof *open);
-    if (!parent || !score || !open) {
+    double *centre = tsl_calloc_array(4 * s->n, sizeof *centre); /* sum xyz, count */
+    uint8_t *open = tsl_calloc_array(s->n, sizeof *open);
+    if (!parent || !score || !centre || !open) {
         free(parent);
         free(score);
+        free(centre);
         free(open);
         return TESSEL_ERR_NOMEM;
     }
@@ -1492,6 +1505,8 @@ static tessel_status orient_components(af *s)
         parent[i] = (uint32_t)i;
     for (size_t t = 0; t < s->nt; t++) {
         const uint32_t *v = s->tri + 3 * t;
+        if (v[0] == NONE)
+            continue;
         for (int i = 1; i < 3; i++) {
             uint32_t x = uf_find(parent, v[0]), y = uf_find(parent, v[i]);
             if (x != y)
@@ -1501,22 +1516,37 @@ static tessel_status orient_components(af *s)
     for (size_t i = 0; i < s->ne; i++)
         if (s->e[i].state != EDGE_CLOSED)
             open[uf_find(parent, s->e[i].from)] = 1;
-    /* Volumes relative to each component's root vertex keep the sums
-     * accurate far from the origin. */
+    /* Centroids, relative to each component's root vertex (accuracy far
+     * from the origin). */
     for (size_t t = 0; t < s->nt; t++) {
         const uint32_t *v = s->tri + 3 * t;
+        if (v[0] == NONE)
+            continue;
+        uint32_t root = uf_find(parent, v[0]);
+        double o[3], p[3];
+        point(s, root, o);
+        for (int i = 0; i < 3; i++) {
+            point(s, v[i], p);
+            for (int c = 0; c < 3; c++)
+                centre[4 * (size_t)root + c] += p[c] - o[c];
+        }
+        centre[4 * (size_t)root + 3] += 3.0;
+    }
+    for (size_t t = 0; t < s->nt; t++) {
+        const uint32_t *v = s->tri + 3 * t;
+        if (v[0] == NONE)
+            continue;
         uint32_t root = uf_find(parent, v[0]);
         double p[3][3], o[3];
+        const double *cs = centre + 4 * (size_t)root;
         point(s, root, o);
+        for (int c = 0; c < 3; c++)
+            o[c] += cs[c] / cs[3];
         for (int i = 0; i < 3; i++) {
             point(s, v[i], p[i]);
             tsl_sub(p[i], o, p[i]);
         }
-        if (!open[root]) {
-            double c[3];
-            tsl_cross(p[1], p[2], c);
-            score[root] += tsl_dot(p[0], c);
-        } else if (s->pnormals) {
+        if (open[root] && s->pnormals) {
             double n[3], u[3], w[3];
             tsl_sub(p[1], p[0], u);
             tsl_sub(p[2], p[0], w);
@@ -1525,6 +1555,10 @@ static tessel_status orient_components(af *s)
                 const float *m = s->pnormals + 3 * (size_t)v[i];
                 score[root] += n[0] * m[0] + n[1] * m[1] + n[2] * m[2];
             }
+        } else {
+            double c[3];
+            tsl_cross(p[1], p[2], c);
+            score[root] += tsl_dot(p[0], c);
         }
     }
     for (size_t i = 0; i < s->n; i++)
@@ -1532,7 +1566,7 @@ static tessel_status orient_components(af *s)
             s->stats.flipped_components++;
     for (size_t t = 0; t < s->nt; t++) {
         uint32_t *v = s->tri + 3 * t;
-        if (score[uf_find(parent, v[0])] < 0.0) {
+        if (v[0] != NONE && score[uf_find(parent, v[0])] < 0.0) {
             uint32_t tmp = v[1];
             v[1] = v[2];
             v[2] = tmp;
@@ -1540,6 +1574,7 @@ static tessel_status orient_components(af *s)
     }
     free(parent);
     free(score);
+    free(centre);
     free(open);
     return TESSEL_OK;
 }
@@ -1555,6 +1590,7 @@ static void af_free(af *s)
     free(s->dup);
     free(s->seen);
     free(s->star);
+    free(s->eroded);
     free(s->cos_level);
     free(s->ln);
     free(s->vsign);
@@ -1928,6 +1964,132 @@ static tessel_status fill_hole(af *s, uint32_t id, size_t len)
     }
 }
 
+/* Removes the triangle on border edge id when its third vertex z is
+ * interior: the border then runs through z (the hole grows by one edge) and
+ * every vertex keeps a single fan. The two new border edges are left to the
+ * hole filling (dead, not queued for the front). */
+static tessel_status erode(af *s, uint32_t id, bool *done)
+{
+    *done = false;
+    af_edge e = s->e[id];
+    uint32_t T = e.tri, x = e.from, y = e.to;
+    const uint32_t *tv = s->tri + 3 * (size_t)T;
+    uint32_t z = tv[0] != x && tv[0] != y ? tv[0] : tv[1] != x && tv[1] != y ? tv[1] : tv[2];
+    if (!is_interior(s, z))
+        return TESSEL_OK;
+    /* The triangles across T's edges z-x and y-z hold x->z and z->y. */
+    uint32_t txz = NONE, tzy = NONE;
+    for (uint32_t c = s->vhead[z]; c != NONE; c = s->cnext[c]) {
+        uint32_t t = c / 3, i = c % 3;
+        if (t == T)
+            continue;
+        const uint32_t *w = s->tri + 3 * (size_t)t;
+        if (w[(i + 2) % 3] == x)
+            txz = t;
+        if (w[(i + 1) % 3] == y)
+            tzy = t;
+    }
+    if (txz == NONE || tzy == NONE)
+        return TESSEL_OK;
+    for (int i = 0; i < 3; i++) {
+        uint32_t v = tv[i], corner = 3 * T + (uint32_t)i;
+        uint32_t *link = &s->vhead[v];
+        while (*link != corner)
+            link = &s->cnext[*link];
+        *link = s->cnext[corner];
+        for (int c = 0; c < 3; c++)
+            s->star[3 * (size_t)v + c] -= s->ti[T].n[c];
+    }
+    for (int i = 0; i < 3; i++)
+        s->tri[3 * (size_t)T + i] = NONE;
+    s->deleted++;
+    uint32_t E1, E2, P = e.prev, N = e.next;
+    tessel_status st;
+    if ((st = new_edge(s, x, z, txz, &E1)) || (st = new_edge(s, z, y, tzy, &E2)))
+        return st;
+    s->e[E1].state = s->e[E2].state = EDGE_DEAD;
+    s->e[E1].retries = s->e[E2].retries = ERODED;
+    link_edges(s, P, E1);
+    link_edges(s, E1, E2);
+    link_edges(s, E2, N);
+    s->vout[x] = E1;
+    s->vin[z] = E1;
+    s->vout[z] = E2;
+    s->vin[y] = E2;
+    s->eroded[z] = 1;
+    s->e[id].state = EDGE_CLOSED;
+    s->stats.eroded_triangles++;
+    *done = true;
+    return TESSEL_OK;
+}
+
+/* Closes the hole through edge id (len edges): the two optimal
+ * triangulations, and when both fail (the borders around it cross, as
+ * noise can make fronts do) once more after removing the triangles along
+ * the hole, then ear clipping. */
+static tessel_status close_hole(af *s, uint32_t id, size_t len)
+{
+    bool done;
+    tessel_status st = fill_hole_dp(s, id, len, true, &done);
+    if (!st && !done)
+        st = fill_hole_dp(s, id, len, false, &done);
+    if (st || done)
+        return st;
+    /* Erosion once per hole: a loop through a vertex that was on an eroded
+     * loop is not eroded again (its remains would otherwise alternate
+     * between erosion and ear clipping). */
+    bool eroded_before = false;
+    uint32_t e = id;
+    do {
+        eroded_before |= s->eroded[s->e[e].from] != 0;
+        e = s->e[e].next;
+    } while (e != id);
+    if (!eroded_before) {
+        /* Erode every edge of the loop once (collected first: the loop
+         * changes as triangles go). */
+        uint32_t *ids = s->scratch_u;
+        if (len > s->scratch_cap) {
+            size_t c1 = s->scratch_cap, c2 = s->scratch_cap;
+            if (tsl_grow((void **)&s->scratch_u, &c1, len, sizeof *s->scratch_u) ||
+                tsl_grow((void **)&s->scratch_d, &c2, len, sizeof *s->scratch_d))
+                return TESSEL_ERR_NOMEM;
+            s->scratch_cap = c1 < c2 ? c1 : c2;
+            ids = s->scratch_u;
+        }
+        size_t m = 0;
+        e = id;
+        do {
+            ids[m++] = e;
+            s->eroded[s->e[e].from] = 1;
+            e = s->e[e].next;
+        } while (e != id && m < len);
+        uint32_t any = NONE;
+        for (size_t i = 0; i < m; i++) {
+            bool gone;
+            if ((st = erode(s, ids[i], &gone)))
+                return st;
+            if (gone)
+                any = s->e[ids[i]].next;
+            else
+                any = any == NONE ? ids[i] : any;
+        }
+        /* Any edge still on the loop: an eroded one's successor is. */
+        id = any != NONE && s->e[any].state != EDGE_CLOSED ? any : id;
+        if (s->e[id].state == EDGE_CLOSED)
+            return TESSEL_OK;
+        len = 1;
+        for (e = s->e[id].next; e != id; e = s->e[e].next)
+            len++;
+        if ((st = fill_hole_dp(s, id, len, true, &done)))
+            return st;
+        if (!done && (st = fill_hole_dp(s, id, len, false, &done)))
+            return st;
+        if (done)
+            return TESSEL_OK;
+    }
+    return fill_hole(s, id, len);
+}
+
 static tessel_status fill_holes(af *s)
 {
     if (!(s->max_hole_radius > 0.0))
@@ -1940,12 +2102,7 @@ static tessel_status fill_holes(af *s)
         size_t len;
         if (!small_hole(s, (uint32_t)i, &len))
             continue;
-        bool done;
-        tessel_status st = fill_hole_dp(s, (uint32_t)i, len, true, &done);
-        if (!st && !done)
-            st = fill_hole_dp(s, (uint32_t)i, len, false, &done);
-        if (!st && !done)
-            st = fill_hole(s, (uint32_t)i, len);
+        tessel_status st = close_hole(s, (uint32_t)i, len);
         if (st)
             return st;
     }
@@ -2062,11 +2219,12 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
     s.vout = tsl_alloc_array(s.n, sizeof *s.vout);
     s.seen = tsl_calloc_array(s.n, sizeof *s.seen);
     s.star = tsl_calloc_array(3 * s.n, sizeof *s.star);
+    s.eroded = tsl_calloc_array(s.n, sizeof *s.eroded);
     size_t levels = (size_t)ceil((s.theta_max - s.theta0) / s.theta_step) + 2;
     s.cos_level = tsl_alloc_array(levels, sizeof *s.cos_level);
     st = TESSEL_ERR_NOMEM;
     if (!s.tri || !s.ti || !s.cnext || !s.vhead || !s.vin || !s.vout || !s.seen || !s.star ||
-        !s.cos_level)
+        !s.eroded || !s.cos_level)
         goto fail;
     /* Level j admits normals turned by up to theta0 + j eps2 (capped at
      * theta_max, which the candidate search enforces). */
@@ -2100,7 +2258,7 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
         goto fail;
 
     int with_normals = points->normals != NULL, with_rgb = points->rgb != NULL;
-    if ((st = tessel_mesh_alloc(mesh, s.n, s.nt, with_normals, with_rgb)))
+    if ((st = tessel_mesh_alloc(mesh, s.n, s.nt - s.deleted, with_normals, with_rgb)))
         goto fail;
     memcpy(mesh->xyz, s.xyz, s.n * 3 * sizeof *mesh->xyz);
     if (with_normals)
@@ -2109,9 +2267,14 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
         memcpy(mesh->rgb, points->rgb, s.n * 3 * sizeof *mesh->rgb);
     for (int c = 0; c < 3; c++)
         mesh->offset[c] = points->offset[c];
-    memcpy(mesh->triangles, s.tri, s.nt * 3 * sizeof *mesh->triangles);
+    size_t kept = 0;
+    for (size_t t = 0; t < s.nt; t++)
+        if (s.tri[3 * t] != NONE) {
+            memcpy(mesh->triangles + 3 * kept, s.tri + 3 * t, 3 * sizeof *mesh->triangles);
+            kept++;
+        }
 
-    s.stats.triangles = s.nt;
+    s.stats.triangles = kept;
     for (size_t i = 0; i < s.ne; i++)
         if (s.e[i].state != EDGE_CLOSED)
             s.stats.border_edges++;
