@@ -442,10 +442,24 @@ static tessel_status walk(gp *g, uint32_t R, const gp_frame *f)
     return TESSEL_OK;
 }
 
+/* f's box of the new triangles: R and the given candidates (relative to R). */
+static void fan_box(const gp *g, gp_frame *f, const uint32_t *idx, size_t count)
+{
+    for (int a = 0; a < 3; a++)
+        f->flo[a] = f->fhi[a] = 0.0;
+    for (size_t i = 0; i < count; i++) {
+        const double *r = g->cand[idx[i]].rel;
+        for (int a = 0; a < 3; a++) {
+            f->flo[a] = fmin(f->flo[a], r[a]);
+            f->fhi[a] = fmax(f->fhi[a], r[a]);
+        }
+    }
+}
+
 /* Builds seq = e, candidates of the free sector by angle, s, for R whose fan
  * runs s -> ... -> e, and triangulates it. Candidate keys must be relative to
  * e's direction. */
-static tessel_status fill_sector(gp *g, uint32_t R, const gp_frame *f)
+static tessel_status fill_sector(gp *g, uint32_t R, gp_frame *f)
 {
     uint32_t e = g->le[R], s = g->ls[R];
     double ks = -1.0;
@@ -492,6 +506,10 @@ static tessel_status fill_sector(gp *g, uint32_t R, const gp_frame *f)
         if (g->cand[i].kept == 2)
             g->cand[i].kept = 1, g->cand[i].key = -1.0;
     angle_criterion(g);
+    fan_box(g, f, g->seq, g->seq_count);
+    tessel_status st_ = tsl_gp_guard_collect(g, R, f, 1);
+    if (st_ != TESSEL_OK)
+        return st_;
     return walk(g, R, f);
 }
 
@@ -609,8 +627,6 @@ static tessel_status process_pass(gp *g, uint32_t R, double scale)
         gp_cand *c = &g->cand[i];
         c->key = wrap4(pseudo_angle(c->x, c->y) - ke);
     }
-    if ((st_ = tsl_gp_guard_collect(g, R, &f, 1)) != TESSEL_OK)
-        return st_;
     if ((st_ = fill_sector(g, R, &f)) != TESSEL_OK)
         return st_;
     finish_ref(g, R);
@@ -754,6 +770,13 @@ static tessel_status seed(gp *g, uint32_t R)
     visibility(g, R, &f, NONE, NONE);
     sort_cands(g);
     drop_hidden(g, NONE, NONE);
+    for (int a = 0; a < 3; a++)
+        f.flo[a] = f.fhi[a] = 0.0;
+    for (size_t i = 0; i < g->cand_count; i++)
+        for (int a = 0; a < 3; a++) {
+            f.flo[a] = fmin(f.flo[a], g->cand[i].rel[a]);
+            f.fhi[a] = fmax(f.fhi[a], g->cand[i].rel[a]);
+        }
     if ((s = tsl_gp_guard_collect(g, R, &f, 0)) != TESSEL_OK)
         return s;
     /* Kept candidates in angular order; start after the widest gap. */
@@ -846,8 +869,16 @@ static tessel_status try_ear(gp *g, uint32_t v, uint32_t u, uint32_t w, int *ok)
     memset(&f, 0, sizeof f);
     tsl_sub(pu, pv, d);
     f.reach = tsl_norm(d);
+    for (int a = 0; a < 3; a++) {
+        f.flo[a] = fmin(0.0, d[a]);
+        f.fhi[a] = fmax(0.0, d[a]);
+    }
     tsl_sub(pw, pv, d);
     f.reach = fmax(f.reach, tsl_norm(d));
+    for (int a = 0; a < 3; a++) {
+        f.flo[a] = fmin(f.flo[a], d[a]);
+        f.fhi[a] = fmax(f.fhi[a], d[a]);
+    }
     tessel_status s = tsl_gp_scan_box(g, v, f.reach + g->delta);
     if (s == TESSEL_OK)
         s = tsl_gp_guard_collect(g, v, &f, 0);

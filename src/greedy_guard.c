@@ -261,12 +261,13 @@ static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp
     return TESSEL_OK;
 }
 
-/* Collects the held triangles that a new triangle within f->reach of R
- * could meet and that the cone does not rule out: those with a vertex in
- * the box of half-size reach + delta (a triangle whose vertices all lie
- * outside has an edge longer than ell and is in the long-triangle grid). A
- * point whose projection is farther from the free cone than its longest
- * edge cannot have a triangle reaching the cone: skipped whole. */
+/* Collects the held triangles that a new triangle in the box [flo, fhi]
+ * (within f->reach of R) could meet and that the cone does not rule out:
+ * those with a vertex in the box of half-size reach + delta around R (a
+ * triangle whose vertices all lie outside has an edge longer than ell and
+ * is in the long-triangle grid). A point farther from the new triangles'
+ * box, or whose projection is farther from the free cone, than its longest
+ * edge cannot have a triangle reaching them: skipped whole. */
 tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone)
 {
     double half = f->reach + g->delta;
@@ -306,6 +307,13 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
         uint32_t v = b->idx;
         if ((double)b->dinf > half || g->head[v] == NONE)
             continue;
+        /* v's triangles lie within its longest edge of it: none reaches the
+         * new triangles' box if v is farther from it than that. */
+        double out = 0.0;
+        for (int a = 0; a < 3; a++)
+            out = fmax(out, fmax(f->flo[a] - b->rel[a], b->rel[a] - f->fhi[a]));
+        if (out > (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * half)
+            continue;
         if (cone.on) {
             double q[2] = {tsl_dot(b->rel, f->u), tsl_dot(b->rel, f->v)};
             gp_pcache *pc = &g->pc[v & (PCACHE - 1)];
@@ -338,8 +346,9 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     const float *r = g->xyz + 3 * (size_t)R;
     float lo[3], hi[3];
     for (int k = 0; k < 3; k++) {
-        lo[k] = (float)(r[k] - half);
-        hi[k] = (float)(r[k] + half);
+        /* The new triangles' box, rounded outward to floats. */
+        lo[k] = nextafterf((float)(r[k] + f->flo[k]), -INFINITY);
+        hi[k] = nextafterf((float)(r[k] + f->fhi[k]), INFINITY);
     }
     uint32_t c0[3], c1[3];
     tsl_gp_lg_cells(g, lo, hi, c0, c1);

@@ -193,6 +193,8 @@ typedef struct gp_frame {
     double n[3], u[3], v[3];
     double rho;        /* radius of the sphere of influence */
     double reach;      /* every new triangle lies within reach of R */
+    double flo[3], fhi[3]; /* box (relative to R) holding every triangle the
+                              guard will be asked about */
 } gp_frame;
 
 /* ---- small helpers ---- */
@@ -331,9 +333,9 @@ void tsl_gp_link_apply(gp *g, uint32_t p, uint32_t a, uint32_t b, int how, int i
 
 /* Exact: a, b, c collinear. */
 int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3]);
-/* Collects into g->gt the held triangles a new triangle within f->reach of
- * R could meet; use_cone: skip those the free-cone certificate rules out
- * (R must have a fan). */
+/* Collects into g->gt the held triangles that a new triangle inside the box
+ * [f->flo, f->fhi] around R (within f->reach of R) could meet; use_cone:
+ * skip those the free-cone certificate rules out (R must have a fan). */
 tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone);
 /* New triangle v meets no collected triangle beyond shared vertices/edges. */
 int tsl_gp_guard_ok(gp *g, const uint32_t v[3]);
