@@ -1016,9 +1016,12 @@ TESSEL_API tessel_status tessel_simplify(const tessel_cloud *cloud, tessel_cloud
  * among those that satisfy (i) the new triangle turns at most theta from
  * the triangle across uv, theta widening by eps2 up to 90 + eps2 degrees
  * until some point qualifies, (ii) the surface stays valid, (iii) both new
- * edges are shorter than eps1 * min(d_u, d_v) (d_x: distance from x to its
- * nearest neighbour), (iv) the angles at u and v are below phi. An edge
- * with no such point stays a border edge. */
+ * edges are shorter than eps1 * min(d_u, d_v), (iv) the angles at u and v
+ * are below phi. d_x is the local spacing at x: the mean distance to its 4
+ * nearest distinct neighbours (the paper uses the nearest one, which makes
+ * (iii) reject everything around the close pairs representatives of
+ * clusters form). An edge with no such point stays a border edge; when the
+ * fronts stop, the narrow holes they left are closed (max_hole_radius). */
 typedef struct tessel_front_params {
     uint32_t k;              /* neighbours of each end of an edge searched
                                 for its third vertex; default 16 (3..64) */
@@ -1028,32 +1031,40 @@ typedef struct tessel_front_params {
     double theta_step_deg;   /* eps2, degrees: theta grows by this; default
                                 15 (> 0) */
     double max_edge_ratio;   /* eps1: new edges shorter than this times the
-                                smaller nearest-neighbour distance of the
-                                edge's ends; default 3 (> 1) */
+                                smaller local spacing d of the edge's ends;
+                                default 3 (> 1) */
     double max_angle_deg;    /* phi, degrees: the new triangle's angles at
                                 the edge's ends stay below this; default 140
                                 (60..180) */
-    double normal_angle_deg; /* a triangle's normal stays within this many
-                                degrees of the surface normal at each of its
-                                vertices (the points' normals when given,
-                                else the normal of the plane fitted to their
-                                k nearest neighbours), oriented as the
-                                surface took it: no fold-backs on noisy
-                                points; default 60 (0..180; 180 disables) */
+    double normal_angle_deg; /* a triangle reaching a new point stays within
+                                this many degrees of the surface normal at
+                                each of its vertices (the points' normals,
+                                sign ignored, when given, else the normal of
+                                the plane fitted to their k nearest
+                                neighbours), oriented as the surface took
+                                it: no fold-backs on noisy points (triangles
+                                that only close border edges get 100);
+                                default 60 (0..180; 180 disables) */
     double max_hole_radius;  /* when the fronts stop, a border loop is
-                                closed by clipping ears that keep the surface
-                                valid if its area over half its perimeter
+                                closed if its area over half its perimeter
                                 (the radius of a round hole, half the width
                                 of a slit) is at most this many times the
-                                mean spacing of its vertices (as d_x above):
-                                holes the front left, not holes of the
-                                sampled surface, which enclose empty space;
-                                default 2.5 (>= 0; 0 disables) */
+                                mean local spacing d of its vertices: holes
+                                the front left, not holes of the sampled
+                                surface, which enclose empty space. Closing
+                                tries the least-area and the least-bending
+                                triangulations of the loop, then, if the
+                                borders cross, the same after removing the
+                                triangles along it, then ear clipping; every
+                                triangle is checked like the front's.
+                                Default 2.5 (>= 0; 0 disables) */
     int orient;              /* 1 (default): every closed component faces
                                 outward (positive volume); open components
                                 agree with the points' normals when they have
-                                them. 0: as grown (still consistent within
-                                each component). */
+                                them, else face away from their centroid
+                                (right for nearly closed surfaces, arbitrary
+                                for flat ones). 0: as grown (still
+                                consistent within each component). */
     int threads;             /* for the neighbour search; 0 = OpenMP default
                                 (honours OMP_NUM_THREADS). The front itself is
                                 sequential; the result does not depend on the
@@ -1065,12 +1076,14 @@ typedef struct tessel_front_stats {
     size_t triangles;        /* triangles in the mesh */
     size_t seeds;            /* seed triangles (fronts started) */
     size_t bridges;          /* joins and splits of border loops */
-    size_t hole_triangles;   /* triangles added by closing small holes */
+    size_t hole_triangles;   /* triangles added by closing holes */
     size_t eroded_triangles; /* triangles removed around holes whose borders
                                 crossed, before closing them */
     size_t border_edges;     /* edges with one triangle in the result */
     size_t unused_points;    /* points on no triangle (isolated points,
-                                exact duplicates, points no front reached) */
+                                exact duplicates, points no front reached,
+                                points left behind by the front as it passed
+                                them slightly off the surface) */
     size_t flipped_components; /* components reversed by orient */
 } tessel_front_stats;
 
@@ -1078,9 +1091,10 @@ typedef struct tessel_front_stats {
  * tessel_simplify). The mesh's vertices are the points, in order (vertex i
  * is point i; normals, colours and offset copied), so points on no triangle
  * are unreferenced vertices. The result is manifold (every edge on one or
- * two triangles, every vertex on a single fan), consistently oriented and
- * free of self-intersections (decided with exact predicates). Normals are
- * not needed; when present they only choose the orientation of open
+ * two triangles, every vertex on a single fan, after every step),
+ * consistently oriented and free of self-intersections (decided with exact
+ * predicates). Normals are not needed; when present they replace the fitted
+ * normals of normal_angle_deg and choose the orientation of open
  * components. params and stats may be NULL. Needs 3 points
  * (TESSEL_ERR_TOO_FEW_POINTS); at most 2^32 - 2 (TESSEL_ERR_LIMIT). On error
  * *mesh is zeroed. */
