@@ -1607,13 +1607,37 @@ static void af_free(af *s)
     tsl_trigrid_free(&s->grid);
 }
 
-/* Neighbour lists (self excluded), nearest-neighbour distances and exact
- * duplicates. */
+typedef struct xyz_key {
+    float x, y, z;
+    uint32_t id;
+} xyz_key;
+
+static int cmp_xyz(const void *pa, const void *pb)
+{
+    const xyz_key *a = pa, *b = pb;
+    if (a->x != b->x)
+        return a->x < b->x ? -1 : 1;
+    if (a->y != b->y)
+        return a->y < b->y ? -1 : 1;
+    if (a->z != b->z)
+        return a->z < b->z ? -1 : 1;
+    return a->id < b->id ? -1 : (a->id > b->id);
+}
+
+/* Exact duplicates (a point equal to one with a smaller index) are marked
+ * and left out of the neighbour search, so that they neither use up the k
+ * neighbours of their surroundings nor ever become vertices. For the other
+ * points: the k nearest others, the local spacing d (mean distance to the
+ * SPACING_NEIGHBOURS nearest) and the normal line (given, or fitted to the
+ * neighbourhood). */
 static tessel_status prepare_neighbours(af *s, int threads)
 {
     size_t kq = (size_t)s->k + 1, rows;
     if (!tsl_mul_size(s->n, kq, &rows))
         return TESSEL_ERR_LIMIT;
+    xyz_key *keys = tsl_alloc_array(s->n, sizeof *keys);
+    float *uxyz = tsl_alloc_array(3 * s->n, sizeof *uxyz);
+    uint32_t *umap = tsl_alloc_array(s->n, sizeof *umap);
     uint32_t *idx = tsl_alloc_array(rows, sizeof *idx);
     float *d2 = tsl_alloc_array(rows, sizeof *d2);
     s->knn = tsl_alloc_array(s->n * s->k, sizeof *s->knn);
@@ -1623,43 +1647,66 @@ static tessel_status prepare_neighbours(af *s, int threads)
     s->vsign = tsl_calloc_array(s->n, sizeof *s->vsign);
     tessel_index *index = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!idx || !d2 || !s->knn || !s->nnd || !s->dup || !s->ln || !s->vsign)
+    if (!keys || !uxyz || !umap || !idx || !d2 || !s->knn || !s->nnd || !s->dup || !s->ln ||
+        !s->vsign)
         goto done;
-    if ((st = tessel_index_build(&index, s->xyz, s->n)))
+    for (size_t i = 0; i < s->n; i++) {
+        keys[i].x = s->xyz[3 * i];
+        keys[i].y = s->xyz[3 * i + 1];
+        keys[i].z = s->xyz[3 * i + 2];
+        keys[i].id = (uint32_t)i;
+    }
+    qsort(keys, s->n, sizeof *keys, cmp_xyz);
+    for (size_t i = 1; i < s->n; i++)
+        if (keys[i].x == keys[i - 1].x && keys[i].y == keys[i - 1].y &&
+            keys[i].z == keys[i - 1].z)
+            s->dup[keys[i].id] = 1;
+    size_t m = 0;
+    for (size_t i = 0; i < s->n; i++) {
+        if (s->dup[i]) {
+            for (uint32_t j = 0; j < s->k; j++)
+                s->knn[i * s->k + j] = NONE;
+            s->nnd[i] = INFINITY;
+            s->ln[3 * i] = s->ln[3 * i + 1] = 0.0f;
+            s->ln[3 * i + 2] = 1.0f;
+            continue;
+        }
+        memcpy(uxyz + 3 * m, s->xyz + 3 * i, 3 * sizeof *uxyz);
+        umap[m++] = (uint32_t)i;
+    }
+    if ((st = tessel_index_build(&index, uxyz, m)))
         goto done;
-    if ((st = tessel_index_knn_batch(index, s->xyz, s->n, kq, idx, d2, threads)))
+    if ((st = tessel_index_knn_batch(index, uxyz, m, kq, idx, d2, threads)))
         goto done;
     const float *given = s->pnormals;
-    long long n = (long long)s->n;
+    long long count = (long long)m;
 #pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
-    for (long long ii = 0; ii < n; ii++) {
-        size_t i = (size_t)ii;
-        const uint32_t *row = idx + i * kq;
-        const float *rd = d2 + i * kq;
+    for (long long uu = 0; uu < count; uu++) {
+        size_t u = (size_t)uu, i = umap[u];
+        const uint32_t *row = idx + u * kq;
+        const float *rd = d2 + u * kq;
         uint32_t *out = s->knn + i * s->k;
-        size_t m = 0;
+        size_t got = 0;
         double sum = 0.0, mean[3] = {0.0, 0.0, 0.0}, cov[9] = {0.0};
         unsigned counted = 0, used = 0;
         for (size_t j = 0; j < kq; j++) {
             if (row[j] == NONE)
                 continue;
-            const float *q = s->xyz + 3 * (size_t)row[j];
+            const float *q = uxyz + 3 * (size_t)row[j];
             for (int c = 0; c < 3; c++)
                 mean[c] += q[c];
             used++;
-            if (row[j] == i)
+            if (row[j] == u)
                 continue;
-            if (rd[j] == 0.0f && row[j] < i)
-                s->dup[i] = 1;
-            if (rd[j] > 0.0f && counted < SPACING_NEIGHBOURS) {
+            if (counted < SPACING_NEIGHBOURS) {
                 sum += sqrt((double)rd[j]);
                 counted++;
             }
-            if (m < s->k)
-                out[m++] = row[j];
+            if (got < s->k)
+                out[got++] = umap[row[j]];
         }
-        for (; m < s->k; m++)
-            out[m] = NONE;
+        for (; got < s->k; got++)
+            out[got] = NONE;
         s->nnd[i] = counted ? (float)(sum / counted) : INFINITY;
         float *ln = s->ln + 3 * i;
         if (given) {
@@ -1676,7 +1723,7 @@ static tessel_status prepare_neighbours(af *s, int threads)
         for (size_t j = 0; j < kq; j++) {
             if (row[j] == NONE)
                 continue;
-            const float *q = s->xyz + 3 * (size_t)row[j];
+            const float *q = uxyz + 3 * (size_t)row[j];
             double d[3] = {q[0] - mean[0], q[1] - mean[1], q[2] - mean[2]};
             for (int r = 0; r < 3; r++)
                 for (int c = 0; c < 3; c++)
@@ -1696,6 +1743,9 @@ static tessel_status prepare_neighbours(af *s, int threads)
     st = TESSEL_OK;
 done:
     tessel_index_destroy(index);
+    free(keys);
+    free(uxyz);
+    free(umap);
     free(idx);
     free(d2);
     return st;

@@ -1,14 +1,16 @@
-/* Advancing-front triangulation (src/advancing_front.c) on clean analytic
+/* Advancing-front triangulation (src/advancing_front.c) on analytic
  * samples: a sphere and a torus must come out closed, manifold, outward and
  * with the right Euler characteristic; a disc with exactly one border loop;
- * two close parallel sheets as two components; every result free of
- * self-intersections (exact check). Also the exact triangle test against
- * hand-made cases, permutation of the input, duplicates and bad input. */
+ * two close parallel sheets as two components; a sphere with noise of a
+ * fifth and of a third of the spacing, shuffled, still closed; every result
+ * free of self-intersections (exact check). Also duplicates, bad input and
+ * the exact triangle test on hand-made cases. */
 #include "test.h"
 
 #include "internal.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -288,11 +290,153 @@ static void test_two_sheets(void)
     tessel_cloud_free(&c);
 }
 
+
+/* Fibonacci sphere with Gaussian noise of sigma times the spacing, in
+ * random order. */
+static tessel_cloud noisy_sphere(size_t n, double sigma, uint64_t seed)
+{
+    tessel_cloud c = sphere(n);
+    double h = sqrt(4.0 * PI / (double)n);
+    for (size_t i = 0; i < 3 * n; i++) {
+        double u = rnd(&seed) + 1e-300, v = rnd(&seed);
+        c.xyz[i] = (float)(c.xyz[i] + sigma * h * sqrt(-2.0 * log(u)) * cos(2.0 * PI * v));
+    }
+    for (size_t i = n - 1; i > 0; i--) {
+        size_t j = (size_t)(rnd(&seed) * (double)(i + 1));
+        for (int k = 0; k < 3; k++) {
+            float t = c.xyz[3 * i + k];
+            c.xyz[3 * i + k] = c.xyz[3 * j + k];
+            c.xyz[3 * j + k] = t;
+        }
+    }
+    return c;
+}
+
+static void test_noisy_sphere(void)
+{
+    /* Noise of a fifth of the spacing in every direction: triangle normals
+     * scatter by tens of degrees, fronts meet crookedly; the surface must
+     * still close, and stay valid. */
+    for (int trial = 0; trial < 2; trial++) {
+        double sigma = trial ? 0.3 : 0.2;
+        tessel_cloud c = noisy_sphere(4000, sigma, 17 + (uint64_t)trial);
+        tessel_mesh m;
+        tessel_front_stats st;
+        CHECK(tessel_advancing_front(&c, NULL, NULL, &m, &st) == TESSEL_OK);
+        tessel_mesh_report rep = check_mesh(&m, &c);
+        CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+        CHECK_MSG(rep.boundary_edges == 0 && rep.components == 1 && rep.genus == 0,
+                  "noisy sphere %.1f: %zu boundary edges, %zu components", sigma,
+                  rep.boundary_edges, rep.components);
+        CHECK(signed_volume(&m) > 0.0);
+        CHECK(st.unused_points < c.count / 3);
+        printf("noisy sphere (sigma %.1f h): %zu triangles, %zu unused points, %zu bridges, "
+               "%zu hole triangles\n",
+               sigma, m.triangle_count, st.unused_points, st.bridges, st.hole_triangles);
+        tessel_mesh_free(&m);
+        tessel_cloud_free(&c);
+    }
+}
+
+static void test_duplicates_and_errors(void)
+{
+    /* Every point twice: the copies stay unused, the surface is the same. */
+    tessel_cloud a = sphere(1000), b = make_cloud(2000);
+    memcpy(b.xyz, a.xyz, 3000 * sizeof *a.xyz);
+    memcpy(b.xyz + 3000, a.xyz, 3000 * sizeof *a.xyz);
+    tessel_mesh ma, mb;
+    tessel_front_stats sa, sb;
+    CHECK(tessel_advancing_front(&a, NULL, NULL, &ma, &sa) == TESSEL_OK);
+    CHECK(tessel_advancing_front(&b, NULL, NULL, &mb, &sb) == TESSEL_OK);
+    CHECK(ma.triangle_count == mb.triangle_count && sb.unused_points == 1000);
+    bool only_first = true;
+    for (size_t i = 0; i < 3 * mb.triangle_count; i++)
+        only_first &= mb.triangles[i] < 1000;
+    CHECK(only_first);
+    tessel_mesh_report rep = check_mesh(&mb, NULL);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.boundary_edges == 0);
+    tessel_mesh_free(&ma);
+    tessel_mesh_free(&mb);
+
+    /* Bad input. */
+    tessel_mesh m;
+    CHECK(tessel_advancing_front(NULL, NULL, NULL, &m, NULL) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tessel_advancing_front(&a, NULL, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    tessel_front_params p = tessel_front_params_default();
+    p.max_edge_ratio = 0.5;
+    CHECK(tessel_advancing_front(&a, &p, NULL, &m, NULL) == TESSEL_ERR_INVALID_ARG);
+    p = tessel_front_params_default();
+    p.k = 100;
+    CHECK(tessel_advancing_front(&a, &p, NULL, &m, NULL) == TESSEL_ERR_INVALID_ARG);
+    size_t n = a.count;
+    a.count = 2;
+    CHECK(tessel_advancing_front(&a, NULL, NULL, &m, NULL) == TESSEL_ERR_TOO_FEW_POINTS);
+    CHECK(m.triangle_count == 0 && m.triangles == NULL);
+    a.count = n;
+    a.xyz[5] = NAN;
+    CHECK(tessel_advancing_front(&a, NULL, NULL, &m, NULL) == TESSEL_ERR_INVALID_ARG);
+    /* Collinear points: no triangle, no failure. */
+    tessel_cloud line = make_cloud(50);
+    for (size_t i = 0; i < 50; i++)
+        line.xyz[3 * i] = (float)i;
+    tessel_front_stats sl;
+    CHECK(tessel_advancing_front(&line, NULL, NULL, &m, &sl) == TESSEL_OK);
+    CHECK(m.triangle_count == 0 && sl.unused_points == 50);
+    tessel_mesh_free(&m);
+    /* All at one place. */
+    memset(line.xyz, 0, 150 * sizeof *line.xyz);
+    CHECK(tessel_advancing_front(&line, NULL, NULL, &m, &sl) == TESSEL_OK);
+    CHECK(m.triangle_count == 0 && sl.unused_points == 50);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&line);
+    tessel_cloud_free(&a);
+    tessel_cloud_free(&b);
+}
+
+/* The exact triangle test on hand-made cases. */
+static void test_triangle_test(void)
+{
+    double a[3] = {0, 0, 0}, b[3] = {1, 0, 0}, c[3] = {0, 1, 0};
+    const double *t1[3] = {a, b, c};
+    uint32_t i1[3] = {0, 1, 2};
+    /* Coplanar, sharing edge a-b, apex on the other side: no overlap. */
+    double d[3] = {0.5, -1, 0};
+    const double *t2[3] = {b, a, d};
+    uint32_t i2[3] = {1, 0, 3};
+    CHECK(!tsl_triangles_intersect(i1, t1, i2, t2));
+    /* Same edge, apex on the same side: overlap. */
+    double e[3] = {0.5, 0.5, 0};
+    const double *t3[3] = {b, a, e};
+    CHECK(tsl_triangles_intersect(i1, t1, i2, t3));
+    /* Sharing vertex a only, the other through the first's interior. */
+    double f[3] = {0.3, 0.3, 1}, g[3] = {0.3, 0.3, -1};
+    const double *t4[3] = {a, f, g};
+    uint32_t i4[3] = {0, 4, 5};
+    CHECK(tsl_triangles_intersect(i1, t1, i4, t4));
+    /* Sharing vertex a, touching only there. */
+    double h[3] = {-1, -1, 1}, k[3] = {-1, 0, 1};
+    const double *t5[3] = {a, h, k};
+    CHECK(!tsl_triangles_intersect(i1, t1, i4, t5));
+    /* Disjoint ids, piercing; and just apart (exactly at z = 1e-30 above). */
+    double p1[3] = {0.2, 0.2, -1}, p2[3] = {0.2, 0.2, 1}, p3[3] = {0.25, 0.2, 1};
+    const double *t6[3] = {p1, p2, p3};
+    uint32_t i6[3] = {6, 7, 8};
+    CHECK(tsl_triangles_intersect(i1, t1, i6, t6));
+    double q1[3] = {0.2, 0.2, 1e-30}, q2[3] = {0.4, 0.2, 1e-30}, q3[3] = {0.2, 0.4, 1};
+    const double *t7[3] = {q1, q2, q3};
+    CHECK(!tsl_triangles_intersect(i1, t1, i6, t7));
+    const double *deg[3] = {a, b, b};
+    CHECK(tsl_triangle_degenerate(deg) && !tsl_triangle_degenerate(t1));
+}
+
 int main(void)
 {
     test_sphere();
     test_torus();
     test_disc();
     test_two_sheets();
+    test_noisy_sphere();
+    test_duplicates_and_errors();
+    test_triangle_test();
     return TEST_SUMMARY();
 }
