@@ -161,6 +161,30 @@ static inline double bench_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+/* CPU time of the process: for one-thread figures it is the work's own
+ * time, which other jobs on the machine disturb much less than wall time. */
+static inline double bench_cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* One-thread figures in CPU time, threaded ones in wall time. */
+static inline double bench_clock(int one_thread)
+{
+    return one_thread ? bench_cpu_now() : bench_now();
+}
+
+/* Repetitions so that one timing covers at least 2*10^5 queries (and as
+ * many builds of a small cloud): small sets alone finish in a few
+ * milliseconds, where one scheduler hiccup changes the figure. */
+static inline int bench_reps(size_t n, size_t queries)
+{
+    (void)n;
+    return queries >= 200000 ? 1 : (int)((200000 + queries - 1) / (queries ? queries : 1));
+}
+
 /* Median of three. */
 static inline double bench_median3(double a, double b, double c)
 {

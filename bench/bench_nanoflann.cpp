@@ -42,10 +42,11 @@ int max_threads()
 }
 
 double time_knn(const Tree &tree, const float *q, size_t nq, size_t k, int threads,
-                uint32_t *idx, float *d2)
+                uint32_t *idx, float *d2, int reps)
 {
-    double t0 = bench_now();
+    double t0 = bench_clock(threads == 1);
     ptrdiff_t n = (ptrdiff_t)nq;
+    for (int r = 0; r < reps; r++) {
     (void)threads;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
@@ -55,15 +56,16 @@ double time_knn(const Tree &tree, const float *q, size_t nq, size_t k, int threa
         rs.init(idx + (size_t)i * k, d2 + (size_t)i * k);
         tree.findNeighbors(rs, q + 3 * (size_t)i, nanoflann::SearchParams());
     }
-    return (double)nq / (bench_now() - t0);
+    }
+    return (double)nq * reps / (bench_clock(threads == 1) - t0);
 }
 
 double time_radius(const Tree &tree, const float *q, size_t nq, float r, int threads,
-                   double *total)
+                   double *total, int reps)
 {
-    double t0 = bench_now();
+    double t0 = bench_clock(threads == 1);
     double sum = 0.0;
-    ptrdiff_t n = (ptrdiff_t)nq;
+    ptrdiff_t n = (ptrdiff_t)nq * reps;
     (void)threads;
 #ifdef _OPENMP
 #pragma omp parallel num_threads(threads) reduction(+ : sum)
@@ -76,12 +78,12 @@ double time_radius(const Tree &tree, const float *q, size_t nq, float r, int thr
 #endif
         for (ptrdiff_t i = 0; i < n; i++) {
             matches.clear();
-            sum += (double)tree.radiusSearch(q + 3 * (size_t)i, r * r, matches,
+            sum += (double)tree.radiusSearch(q + 3 * ((size_t)i % nq), r * r, matches,
                                              nanoflann::SearchParams());
         }
     }
-    *total = sum;
-    return (double)nq / (bench_now() - t0);
+    *total = sum / reps;
+    return (double)n / (bench_clock(threads == 1) - t0);
 }
 
 int run(const char *name, const float *xyz, size_t n, size_t max_queries)
@@ -91,25 +93,34 @@ int run(const char *name, const float *xyz, size_t n, size_t max_queries)
     std::vector<float> d2(nq * 32);
     float r = bench_radius16(xyz, n);
     Cloud cloud = {xyz, n};
-    double build[3], knn[3][2][3], rad[2][3], neighbours = 0.0, checksum = 0.0;
+    double build[3], build1[3], knn[3][2][3], rad[2][3], neighbours = 0.0, checksum = 0.0;
+    int reps = bench_reps(n, nq);
     for (int run_i = 0; run_i < 3; run_i++) {
+        /* nanoflann 1.4 builds on one thread: CPU time and wall time. */
+        double c0 = bench_cpu_now();
+        for (int rep = 0; rep < reps; rep++)
+            Tree discard(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+        build1[run_i] = (bench_cpu_now() - c0) / reps;
         double t0 = bench_now();
+        for (int rep = 1; rep < reps; rep++)
+            Tree discard(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
         Tree tree(3, cloud, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-        build[run_i] = bench_now() - t0;
+        build[run_i] = (bench_now() - t0) / reps;
         for (int ki = 0; ki < 3; ki++) {
             for (int ti = 0; ti < 2; ti++)
                 knn[ki][ti][run_i] = time_knn(tree, xyz, nq, ks[ki],
                                               ti == 0 ? 1 : max_threads(), idx.data(),
-                                              d2.data());
+                                              d2.data(), reps);
             if (ks[ki] == 16 && run_i == 0)
                 for (size_t i = 0; i < nq * 16; i++)
                     checksum += d2[i];
         }
         for (int ti = 0; ti < 2; ti++)
             rad[ti][run_i] =
-                time_radius(tree, xyz, nq, r, ti == 0 ? 1 : max_threads(), &neighbours);
+                time_radius(tree, xyz, nq, r, ti == 0 ? 1 : max_threads(), &neighbours, reps);
     }
     double b = bench_median3(build[0], build[1], build[2]);
+    double b1 = bench_median3(build1[0], build1[1], build1[2]);
     double kq[3][2], rq[2];
     for (int ki = 0; ki < 3; ki++)
         for (int ti = 0; ti < 2; ti++)
@@ -117,11 +128,12 @@ int run(const char *name, const float *xyz, size_t n, size_t max_queries)
     for (int ti = 0; ti < 2; ti++)
         rq[ti] = bench_median3(rad[ti][0], rad[ti][1], rad[ti][2]);
 
-    printf("%-22s %10zu %8.3f", name, n, b);
+    printf("%-22s %10zu %8.3f %8.3f", name, n, b1, b);
     for (int ki = 0; ki < 3; ki++)
         printf(" %9.0f %9.0f", kq[ki][0], kq[ki][1]);
     printf(" %9.0f %9.0f  (r=%.4g, %.1f nbrs)\n", rq[0], rq[1], r, neighbours / (double)nq);
-    printf("RESULT impl=nanoflann name=%s n=%zu queries=%zu build=%.6f", name, n, nq, b);
+    printf("RESULT impl=nanoflann name=%s n=%zu queries=%zu build_1t=%.6f build=%.6f", name,
+           n, nq, b1, b);
     for (int ki = 0; ki < 3; ki++)
         printf(" knn%zu_1t=%.0f knn%zu_mt=%.0f", ks[ki], kq[ki][0], ks[ki], kq[ki][1]);
     printf(" radius_1t=%.0f radius_mt=%.0f checksum16=%.9g\n", rq[0], rq[1], checksum);
@@ -151,7 +163,8 @@ int main(int argc, char **argv)
     printf("nanoflann %d.%d.%d, %d threads; queries/s for 1 thread and all threads\n",
            NANOFLANN_VERSION >> 8, (NANOFLANN_VERSION >> 4) & 15, NANOFLANN_VERSION & 15,
            max_threads());
-    printf("%-22s %10s %8s %9s %9s %9s %9s %9s %9s %9s %9s\n", "data", "points", "build s",
+    printf("%-22s %10s %8s %8s %9s %9s %9s %9s %9s %9s %9s %9s\n", "data", "points",
+           "build 1t", "build",
            "k8 1t", "k8 mt", "k16 1t", "k16 mt", "k32 1t", "k32 mt", "rad 1t", "rad mt");
     for (int i = 1; i < argc; i++) {
         if (argv[i][0] == '-') {

@@ -4,6 +4,8 @@
 # queries/s for both, and the ratio (> 1: tessel faster; for the build,
 # nanoflann's time / ours). The two programs alternate data set by data set,
 # never at the same time, so a change in machine load hits both alike.
+# One-thread figures are CPU time (robust to other jobs on the machine),
+# threaded ones wall time.
 #
 # Usage: bench/run_neighbours.sh BUILD_DIR [--max-n N] [--queries Q] [FILE.ply...]
 set -eu
@@ -39,8 +41,9 @@ run_both() {
         grep '^RESULT' "$raw" >>"$out"
     done
 }
-echo "each data set: tessel, then nanoflann; build s, then queries/s (1 thread, all threads)"
-printf "%-22s %10s %8s %9s %9s %9s %9s %9s %9s %9s %9s\n" data points "build s" \
+echo "each data set: tessel, then nanoflann; build seconds, then queries/s;"
+echo "1t: one thread, CPU time; mt: all threads, wall time"
+printf "%-22s %10s %8s %8s %9s %9s %9s %9s %9s %9s %9s %9s\n" data points "build 1t" "build" \
     "k8 1t" "k8 mt" "k16 1t" "k16 mt" "k32 1t" "k32 mt" "rad 1t" "rad mt"
 if [ -n "$files" ]; then
     for f in $files; do run_both "$f"; done
@@ -67,7 +70,7 @@ function field(line, key,   n, i, parts, kv) {
     line[impl, name] = $0
 }
 END {
-    nk = split("build knn8_1t knn8_mt knn16_1t knn16_mt knn32_1t knn32_mt radius_1t radius_mt", keys, " ")
+    nk = split("build_1t build knn8_1t knn8_mt knn16_1t knn16_mt knn32_1t knn32_mt radius_1t radius_mt", keys, " ")
     printf "\nours / nanoflann = ratio (build: seconds; queries: thousands per second)\n"
     printf "%-20s %-9s", "data", "points"
     for (j = 1; j <= nk; j++) printf " %18s", keys[j]
@@ -78,7 +81,7 @@ END {
         printf "%-20s %-9s", name, field(a, "n")
         for (j = 1; j <= nk; j++) {
             x = field(a, keys[j]); y = field(b, keys[j])
-            if (keys[j] == "build") cell = sprintf("%.3f/%.3f=%.2f", x, y, (x > 0) ? y / x : 0)
+            if (keys[j] ~ /^build/) cell = sprintf("%.3f/%.3f=%.2f", x, y, (x > 0) ? y / x : 0)
             else cell = sprintf("%.0f/%.0f=%.2f", x / 1000, y / 1000, (y > 0) ? x / y : 0)
             printf " %18s", cell
         }

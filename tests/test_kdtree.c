@@ -234,6 +234,12 @@ static void test_batch(void)
     CHECK_MSG(bad == 0, "%d batch rows differ from single queries", bad);
     /* The large tree (built with tasks) against brute force on a few. */
     check_cloud("large", xyz, N, K, 0.3f, 20, 0.0f, 10.0f);
+    /* A large cloud of only three distinct points: the median selection
+     * must stay linear (it would be quadratic without grouping equal keys)
+     * and ties still go by index. */
+    for (size_t i = 0; i < 3 * (size_t)N; i++)
+        xyz[i] = (float)((i / 3) % 3);
+    check_cloud("three values", xyz, N, 40, 0.5f, 6, 0.0f, 2.0f);
     free(a);
     free(b);
     free(da);
