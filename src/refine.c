@@ -223,85 +223,111 @@ static tessel_status grid_add(rf *r, uint32_t t)
     return tsl_trigrid_insert(&r->grid, t, lo, hi);
 }
 
-/* New triangle t keeps to its predecessor's normal (unit old_n) and does
- * not intersect any other triangle of the mesh; the triangles in news[]
- * (being changed in the same operation) are tested against each other
- * explicitly, since the grid knows them at their old place. */
-static tessel_status check_new(rf *r, uint32_t t, const double old_n[3], const uint32_t *news,
-                               int count, bool *ok)
+/* A triangle being checked: ids, coordinates, box, bounding sphere. */
+typedef struct new_tri {
+    const uint32_t *v;
+    double p[3][3];
+    double lo[3], hi[3], centroid[3], radius;
+} new_tri;
+
+/* The count triangles news[] of one operation (already written into the
+ * mesh) each keep to their predecessor's unit normal old_n[q], are not
+ * degenerate, and intersect neither each other nor any other triangle of
+ * the mesh beyond shared vertices and edges (exact). One grid query covers
+ * them all; the grid knows the changed triangles at their old place, so they
+ * are tested against each other explicitly. */
+static tessel_status check_news(rf *r, const uint32_t *news, int count,
+                                const double (*old_n)[3], bool *ok)
 {
     *ok = false;
-    double n[3];
-    tri_cross(r, t, n);
-    if (!tsl_normalize(n) || tsl_dot(n, old_n) < r->cos_turn)
-        return TESSEL_OK;
-    double p[3][3];
-    const uint32_t *tv = r->tri + 3 * (size_t)t;
-    for (int i = 0; i < 3; i++)
-        vtx(r, tv[i], p[i]);
-    const double *pp[3] = {p[0], p[1], p[2]};
-    if (tsl_triangle_degenerate(pp))
-        return TESSEL_OK;
-    double lo[3], hi[3], centroid[3], radius = 0.0;
-    tri_box(r, t, lo, hi);
-    for (int c = 0; c < 3; c++)
-        centroid[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
-    for (int i = 0; i < 3; i++) {
-        double d[3];
-        tsl_sub(p[i], centroid, d);
-        double l = tsl_norm(d);
-        radius = l > radius ? l : radius;
+    new_tri nt[4];
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (int q = 0; q < count; q++) {
+        new_tri *x = &nt[q];
+        double n[3];
+        tri_cross(r, news[q], n);
+        if (!tsl_normalize(n) || tsl_dot(n, old_n[q]) < r->cos_turn)
+            return TESSEL_OK;
+        x->v = r->tri + 3 * (size_t)news[q];
+        for (int i = 0; i < 3; i++)
+            vtx(r, x->v[i], x->p[i]);
+        const double *pp[3] = {x->p[0], x->p[1], x->p[2]};
+        if (tsl_triangle_degenerate(pp))
+            return TESSEL_OK;
+        tri_box(r, news[q], x->lo, x->hi);
+        x->radius = 0.0;
+        for (int c = 0; c < 3; c++) {
+            x->centroid[c] = (x->p[0][c] + x->p[1][c] + x->p[2][c]) / 3.0;
+            lo[c] = x->lo[c] < lo[c] ? x->lo[c] : lo[c];
+            hi[c] = x->hi[c] > hi[c] ? x->hi[c] : hi[c];
+        }
+        for (int i = 0; i < 3; i++) {
+            double d[3];
+            tsl_sub(x->p[i], x->centroid, d);
+            double l = tsl_norm(d);
+            x->radius = l > x->radius ? l : x->radius;
+        }
     }
+    for (int a = 0; a < count; a++)
+        for (int b = a + 1; b < count; b++) {
+            const double *pa[3] = {nt[a].p[0], nt[a].p[1], nt[a].p[2]};
+            const double *pb[3] = {nt[b].p[0], nt[b].p[1], nt[b].p[2]};
+            if (tsl_triangles_intersect(nt[a].v, pa, nt[b].v, pb))
+                return TESSEL_OK;
+        }
     tessel_status st = tsl_trigrid_query(&r->grid, lo, hi);
     if (st)
         return st;
-    for (size_t i = 0; i < r->grid.found_count + (size_t)count; i++) {
-        uint32_t e = i < r->grid.found_count ? r->grid.found[i]
-                                             : news[i - r->grid.found_count];
-        if (e == t || e >= r->nt)
+    for (size_t i = 0; i < r->grid.found_count; i++) {
+        uint32_t e = r->grid.found[i];
+        if (e >= r->nt)
             continue;
         bool is_new = false;
-        for (int j = 0; j < count; j++)
-            is_new |= news[j] == e;
-        if (is_new && i < r->grid.found_count)
-            continue; /* tested below with its new coordinates */
+        for (int q = 0; q < count; q++)
+            is_new |= news[q] == e;
+        if (is_new)
+            continue;
         const uint32_t *ev = r->tri + 3 * (size_t)e;
-        double q[3][3];
+        double p[3][3], elo[3], ehi[3], ce[3], re2 = 0.0;
         for (int j = 0; j < 3; j++)
-            vtx(r, ev[j], q[j]);
-        const double *pq[3] = {q[0], q[1], q[2]};
-        if (!is_new) {
+            vtx(r, ev[j], p[j]);
+        for (int c = 0; c < 3; c++) {
+            elo[c] = p[0][c] < p[1][c] ? p[0][c] : p[1][c];
+            elo[c] = p[2][c] < elo[c] ? p[2][c] : elo[c];
+            ehi[c] = p[0][c] > p[1][c] ? p[0][c] : p[1][c];
+            ehi[c] = p[2][c] > ehi[c] ? p[2][c] : ehi[c];
+            ce[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
+        }
+        for (int j = 0; j < 3; j++) {
+            double d[3];
+            tsl_sub(p[j], ce, d);
+            double l = tsl_dot(d, d);
+            re2 = l > re2 ? l : re2;
+        }
+        const double *pe[3] = {p[0], p[1], p[2]};
+        for (int q = 0; q < count; q++) {
+            const new_tri *x = &nt[q];
             bool apart = false;
-            for (int c = 0; c < 3 && !apart; c++) {
-                double elo = q[0][c], ehi = q[0][c];
-                for (int j = 1; j < 3; j++) {
-                    elo = q[j][c] < elo ? q[j][c] : elo;
-                    ehi = q[j][c] > ehi ? q[j][c] : ehi;
-                }
-                apart = ehi < lo[c] || elo > hi[c];
-            }
+            for (int c = 0; c < 3 && !apart; c++)
+                apart = ehi[c] < x->lo[c] || elo[c] > x->hi[c];
             if (apart)
                 continue;
-            /* Bounding spheres apart (triangles sharing no vertex). */
-            if (tv[0] != ev[0] && tv[0] != ev[1] && tv[0] != ev[2] && tv[1] != ev[0] &&
-                tv[1] != ev[1] && tv[1] != ev[2] && tv[2] != ev[0] && tv[2] != ev[1] &&
-                tv[2] != ev[2]) {
-                double ce[3], d[3], re2 = 0.0;
-                for (int c = 0; c < 3; c++)
-                    ce[c] = (q[0][c] + q[1][c] + q[2][c]) / 3.0;
-                for (int j = 0; j < 3; j++) {
-                    tsl_sub(q[j], ce, d);
-                    double l = tsl_dot(d, d);
-                    re2 = l > re2 ? l : re2;
-                }
-                tsl_sub(ce, centroid, d);
-                double reach = radius + sqrt(re2);
+            const uint32_t *tv = x->v;
+            bool shares = false;
+            for (int a = 0; a < 3; a++)
+                shares |= tv[a] == ev[0] || tv[a] == ev[1] || tv[a] == ev[2];
+            if (!shares) {
+                /* Bounding spheres apart. */
+                double d[3];
+                tsl_sub(ce, x->centroid, d);
+                double reach = x->radius + sqrt(re2);
                 if (tsl_dot(d, d) > reach * reach)
                     continue;
             }
+            const double *pp[3] = {x->p[0], x->p[1], x->p[2]};
+            if (tsl_triangles_intersect(tv, pp, ev, pe))
+                return TESSEL_OK;
         }
-        if (tsl_triangles_intersect(tv, pp, ev, pq))
-            return TESSEL_OK;
     }
     *ok = true;
     return TESSEL_OK;
@@ -481,12 +507,14 @@ static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3
     }
     uint32_t news[4] = {T1, T3, T2, T4};
     int count = T2 != NONE ? 4 : 2;
-    bool ok = true;
-    for (int q = 0; q < count && ok; q++) {
-        st = check_new(r, news[q], q < 2 ? old1 : old2, news, count, &ok);
-        if (st)
-            return st;
+    double olds[4][3];
+    for (int c = 0; c < 3; c++) {
+        olds[0][c] = olds[1][c] = old1[c];
+        olds[2][c] = olds[3][c] = old2[c];
     }
+    bool ok;
+    if ((st = check_news(r, news, count, (const double(*)[3])olds, &ok)))
+        return st;
     if (!ok) {
         /* Undo: restore T1, T2 and the outer twins; drop m, T3, T4. */
         memcpy(r->tri + 3 * (size_t)T1, save_tri, 3 * sizeof *save_tri);
@@ -569,12 +597,11 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done)
     set_twin(r, 3 * T2, tw_vA);
     set_twin(r, 3 * T2 + 2, tw_Bv);
     uint32_t news[2] = {T1, T2};
-    bool ok = true;
-    for (int q = 0; q < 2 && ok; q++) {
-        tessel_status st = check_new(r, news[q], avg, news, 2, &ok);
-        if (st)
-            return st;
-    }
+    const double olds[2][3] = {{avg[0], avg[1], avg[2]}, {avg[0], avg[1], avg[2]}};
+    bool ok;
+    tessel_status st0 = check_news(r, news, 2, olds, &ok);
+    if (st0)
+        return st0;
     if (!ok) {
         memcpy(r->tri + 3 * (size_t)T1, save_tri, 3 * sizeof *save_tri);
         memcpy(r->tri + 3 * (size_t)T2, save_tri + 3, 3 * sizeof *save_tri);
