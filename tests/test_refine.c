@@ -303,6 +303,41 @@ static void test_pipeline_sheets(void)
     tessel_cloud_free(&two);
 }
 
+
+static int cancel_at_refine(void *user, const char *stage, double fraction)
+{
+    (void)fraction;
+    int *calls = user;
+    ++*calls;
+    return strcmp(stage, "refine") == 0;
+}
+
+static void test_pipeline_threads_and_cancel(void)
+{
+    /* Same bits for 1 and 2 threads; a progress callback that says stop
+     * stops it with TESSEL_ERR_CANCELLED and no mesh. */
+    tessel_cloud c;
+    CHECK(surf_sphere(&c, 0.05, 20) == TESSEL_OK);
+    free(c.normals);
+    c.normals = NULL;
+    surf_noise(&c, 0.02, 21);
+    tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
+    tessel_mesh m1, m2;
+    p.threads = 1;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &m1, NULL) == TESSEL_OK);
+    p.threads = 2;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &m2, NULL) == TESSEL_OK);
+    CHECK(m1.triangle_count > 0 && same_mesh(&m1, &m2));
+    int calls = 0;
+    tessel_callbacks cb = {cancel_at_refine, NULL, &calls};
+    tessel_mesh m3;
+    CHECK(tessel_reconstruct_smooth(&c, &p, &cb, &m3, NULL) == TESSEL_ERR_CANCELLED);
+    CHECK(calls > 0 && m3.triangle_count == 0 && m3.triangles == NULL);
+    tessel_mesh_free(&m1);
+    tessel_mesh_free(&m2);
+    tessel_cloud_free(&c);
+}
+
 int main(void)
 {
     test_refine_sphere();
@@ -312,5 +347,6 @@ int main(void)
     test_pipeline_torus();
     test_pipeline_open();
     test_pipeline_sheets();
+    test_pipeline_threads_and_cancel();
     return TEST_SUMMARY();
 }
