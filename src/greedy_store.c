@@ -13,6 +13,12 @@ typedef struct gp_sortrec {
     uint32_t i;
 } gp_sortrec;
 
+static int cmp_double(const void *pa, const void *pb)
+{
+    double a = *(const double *)pa, b = *(const double *)pb;
+    return a < b ? -1 : (a > b);
+}
+
 static int cmp_sortrec(const void *pa, const void *pb)
 {
     const gp_sortrec *x = pa, *y = pb;
@@ -932,11 +938,26 @@ tessel_status tsl_gp_init(gp *g)
             lo[k] = fmin(lo[k], x);
             hi[k] = fmax(hi[k], x);
         }
+    /* The arrays cover a robust extent: from the 0.1% to the 99.9%
+     * quantile of a sample, widened by 5%. Points beyond land in the border
+     * columns and blocks (coordinates are clamped), so one far outlier does
+     * not stretch every column over the whole cloud. */
     double ext[3];
+    size_t ns = n < 8192 ? n : 8192;
+    double *sample = tsl_alloc_array(ns, sizeof *sample);
+    if (!sample)
+        return TESSEL_ERR_NOMEM;
     for (int k = 0; k < 3; k++) {
-        g->glo[k] = lo[k];
-        ext[k] = hi[k] - lo[k];
+        for (size_t i = 0; i < ns; i++)
+            sample[i] = src[3 * (size_t)((double)i * (double)n / (double)ns) + (size_t)k];
+        qsort(sample, ns, sizeof *sample, cmp_double);
+        double qlo = sample[ns / 1000], qhi = sample[ns - 1 - ns / 1000];
+        double pad = 0.05 * (qhi - qlo);
+        double rlo = fmax(lo[k], qlo - pad), rhi = fmin(hi[k], qhi + pad);
+        g->glo[k] = rlo;
+        ext[k] = rhi - rlo;
     }
+    free(sample);
     g->ad = 0;
     for (int k = 1; k < 3; k++)
         if (ext[k] > ext[g->ad])

@@ -250,6 +250,17 @@ static void test_duplicates_and_degenerate(void)
     tessel_cloud_free(&c);
     tessel_cloud_free(&s);
 
+    /* One point far away: isolated, and the rest is untouched. */
+    CHECK(surf_sphere(&s, 0.06, 11) == TESSEL_OK);
+    CHECK(tessel_cloud_alloc(&c, s.count + 1, 0, 0) == TESSEL_OK);
+    memcpy(c.xyz, s.xyz, s.count * 3 * sizeof(float));
+    c.xyz[3 * s.count] = c.xyz[3 * s.count + 1] = c.xyz[3 * s.count + 2] = 1e4f;
+    rep = recon("sphere and an outlier", &c, &p, &m, &sum);
+    CHECK(sum.left_isolated == 1 && sum.points_used == s.count && rep.boundary_edges == 0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&s);
+
     /* Too few points; all points equal; all on a line; a regular grid (many
      * cocircular points, exact ties in the angular order). */
     sink_buf b = {0};
