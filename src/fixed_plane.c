@@ -2128,6 +2128,16 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
         }
         if (status == TESSEL_OK)
             status = fp_size(map, cloud->count, &f, lo, hi, &p, valid, full, &dx);
+        /* A dexel array far finer than the points would be empty dexels
+         * only, and could ask for gigabytes. */
+        if (status == TESSEL_OK &&
+            (double)dx.w * dx.h > 16.0 * (double)valid + (double)(1u << 20)) {
+            tsl_log(callbacks, TESSEL_LOG_WARNING,
+                    "a %u x %u dexel array for %zu points is far finer than the "
+                    "sampling: choose a larger cell or fewer dexels",
+                    dx.w, dx.h, valid);
+            status = TESSEL_ERR_LIMIT;
+        }
         dx.wrap_c = full == 0;
         dx.wrap_r = full == 1;
         dx.lo[0] = lo[0];

@@ -1012,6 +1012,12 @@ static void test_errors(void)
     q.points_per_dexel = 0.5;
     CHECK(run(&c, &q, &m, NULL) == TESSEL_ERR_INVALID_ARG);
     q = p;
+    q.columns = q.rows = 100000; /* 10^10 dexels for 3000 points */
+    CHECK(run(&c, &q, &m, NULL) == TESSEL_ERR_LIMIT);
+    q = p;
+    q.cell = 1e-6; /* 10^12 dexels */
+    CHECK(run(&c, &q, &m, NULL) == TESSEL_ERR_LIMIT);
+    q = p;
     q.mode = (tessel_fixed_plane_mode)7;
     CHECK(run(&c, &q, &m, NULL) == TESSEL_ERR_INVALID_ARG);
     CHECK(tessel_reconstruct_fixed_plane(&c, &p, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
