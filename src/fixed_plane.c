@@ -12,18 +12,22 @@
  *
  * Three ways to get the dexel array, one triangulator:
  *   height  the cloud is projected on a plane (least variance, or normal to
- *           an axis); square dexels; representative = the point at the
- *           dexel's median height.
+ *           an axis); square dexels; depth = height.
  *   range   directions from the viewpoint in (theta, phi) about a pole axis;
- *           representative = the point at the dexel's median range.
+ *           depth = range.
  *   grid    the organized cloud's own grid, every point its own dexel.
+ * Representative (height, range): among the dexel's points whose depth is
+ * in the middle half of its depths, the one nearest the dexel centre; an
+ * empty dexel next to spare points takes the nearest (one-dexel sampling
+ * gaps), its triangles checked for overlap in projection.
  * The triangulator walks the 2x2 blocks of adjacent dexels, joins the
  * shorter diagonal, keeps a triangle when its three edges pass the
  * sphere-of-influence test (see tessel.h) and it is not flipped seen along
- * the projection direction, then removes the few triangles that would make
- * a vertex non-manifold (two fans touching at one vertex) and streams the
- * rest in row order. Orientation comes from the array's parametrization,
- * so it is consistent by construction.
+ * the projection direction, removes the few triangles that would make a
+ * vertex non-manifold (two fans touching at one vertex), closes the small
+ * polar ring of a full (theta, phi) scan and streams the rest in row order.
+ * Orientation comes from the array's parametrization, so it is consistent
+ * by construction. docs/fixed_plane.md has the details and measurements.
  */
 #include "internal.h"
 
