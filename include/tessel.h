@@ -1049,9 +1049,11 @@ typedef struct tessel_front_params {
                                 closed if its area over half its perimeter
                                 (the radius of a round hole, half the width
                                 of a slit) is at most this many times the
-                                mean local spacing d of its vertices: holes
-                                the front left, not holes of the sampled
-                                surface, which enclose empty space. Closing
+                                mean local spacing d of its vertices (up to
+                                twice that when points the front passed by
+                                lie in it): holes the front left, not holes
+                                of the sampled surface, which enclose empty
+                                space. Closing
                                 tries the least-area and the least-bending
                                 triangulations of the loop, then, if the
                                 borders cross, the same after removing the

@@ -1754,8 +1754,9 @@ done:
 /* Whether the border loop through edge id (marked with the current pass)
  * is a hole to close: its area over half its perimeter (the radius of a
  * round hole, half the width of a slit) is at most max_hole_radius times
- * the mean spacing of its vertices. A hole the front left is a few
- * spacings wide or a slit; a real border encloses empty space. */
+ * the mean spacing of its vertices, or twice that with unused points in it.
+ * A hole the front left is a few spacings wide or a slit, often with points
+ * it passed by; a real border encloses empty space. */
 static bool small_hole(af *s, uint32_t id, size_t *len)
 {
     double p0[3], area[3] = {0.0, 0.0, 0.0}, perimeter = 0.0, spacing = 0.0;
@@ -1781,7 +1782,37 @@ static bool small_hole(af *s, uint32_t id, size_t *len)
     *len = n;
     if (n > MAX_HOLE_EDGES)
         return false;
-    return 2.0 * tsl_norm(area) / perimeter <= s->max_hole_radius * spacing / (double)n;
+    double radius = 2.0 * tsl_norm(area) / perimeter, d = spacing / (double)n;
+    if (radius <= s->max_hole_radius * d)
+        return true;
+    if (radius > 2.0 * s->max_hole_radius * d)
+        return false;
+    /* Up to twice as wide: a hole when points the front passed by lie in
+     * it (a hole of the surface has none). */
+    double c[3] = {0.0, 0.0, 0.0};
+    e = id;
+    do {
+        double q[3];
+        point(s, s->e[e].from, q);
+        for (int k = 0; k < 3; k++)
+            c[k] += q[k] / (double)n;
+        e = s->e[e].next;
+    } while (e != id);
+    e = id;
+    do {
+        const uint32_t *nb = s->knn + (size_t)s->e[e].from * s->k;
+        for (uint32_t j = 0; j < s->k; j++) {
+            if (nb[j] == NONE || !is_free(s, nb[j]) || s->dup[nb[j]])
+                continue;
+            double q[3], w[3];
+            point(s, nb[j], q);
+            tsl_sub(q, c, w);
+            if (tsl_dot(w, w) < radius * radius)
+                return true;
+        }
+        e = s->e[e].next;
+    } while (e != id);
+    return false;
 }
 
 /* Dihedral measure between two unit normals: 1 - cos (0 when flat). */
