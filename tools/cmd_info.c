@@ -15,6 +15,7 @@ static bool format_has_faces(tessel_format f)
            f == TESSEL_FORMAT_AUTO;
 }
 
+/* st is NULL when the cloud has too few points for statistics. */
 static void print_text(const char *path, tessel_format format, const tessel_cloud *c,
                        size_t triangles, const tessel_cloud_stats *st)
 {
@@ -33,6 +34,11 @@ static void print_text(const char *path, tessel_format format, const tessel_clou
                c->viewpoint[2]);
     if (c->offset[0] != 0 || c->offset[1] != 0 || c->offset[2] != 0)
         printf("offset:      %.17g %.17g %.17g\n", c->offset[0], c->offset[1], c->offset[2]);
+    if (!st) {
+        printf("spacing:     too few points to measure\n");
+        printf("nan/inf:     %zu dropped\n", c->dropped_nonfinite);
+        return;
+    }
     printf("bbox min:    %.9g %.9g %.9g\n", st->bbox_min[0], st->bbox_min[1], st->bbox_min[2]);
     printf("bbox max:    %.9g %.9g %.9g\n", st->bbox_max[0], st->bbox_max[1], st->bbox_max[2]);
     printf("diagonal:    %.9g\n", st->diagonal);
@@ -59,6 +65,10 @@ static void print_json(const char *path, tessel_format format, const tessel_clou
         printf(", \"viewpoint\": [%.17g, %.17g, %.17g]", c->viewpoint[0], c->viewpoint[1],
                c->viewpoint[2]);
     printf(", \"offset\": [%.17g, %.17g, %.17g]", c->offset[0], c->offset[1], c->offset[2]);
+    if (!st) {
+        printf(", \"nonfinite_dropped\": %zu}\n", c->dropped_nonfinite);
+        return;
+    }
     printf(", \"bbox_min\": [%.17g, %.17g, %.17g]", st->bbox_min[0], st->bbox_min[1],
            st->bbox_min[2]);
     printf(", \"bbox_max\": [%.17g, %.17g, %.17g]", st->bbox_max[0], st->bbox_max[1],
@@ -124,15 +134,18 @@ int cmd_info(int argc, char **argv)
     sp.threads = common.threads;
     tessel_cloud_stats stats;
     st = tessel_cloud_stats_compute(&cloud, &sp, &stats);
+    bool have_stats = st == TESSEL_OK;
+    if (st == TESSEL_ERR_TOO_FEW_POINTS)
+        st = TESSEL_OK; /* empty or one-point files are described all the same */
     if (st != TESSEL_OK) {
         cli_error("%s: statistics failed: %s", path, tessel_status_str(st));
         tessel_cloud_free(&cloud);
         return CLI_FAILURE;
     }
     if (common.json)
-        print_json(path, format, &cloud, triangles, &stats);
+        print_json(path, format, &cloud, triangles, have_stats ? &stats : NULL);
     else
-        print_text(path, format, &cloud, triangles, &stats);
+        print_text(path, format, &cloud, triangles, have_stats ? &stats : NULL);
     tessel_cloud_free(&cloud);
     return CLI_OK;
 }
