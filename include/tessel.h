@@ -1098,7 +1098,7 @@ typedef struct tessel_front_stats {
  * predicates). Normals are not needed; when present they replace the fitted
  * normals of normal_angle_deg and choose the orientation of open
  * components. params and stats may be NULL. Needs 3 points
- * (TESSEL_ERR_TOO_FEW_POINTS); at most 2^32 - 2 (TESSEL_ERR_LIMIT). On error
+ * (TESSEL_ERR_TOO_FEW_POINTS); at most 2^29 (TESSEL_ERR_LIMIT). On error
  * *mesh is zeroed. */
 TESSEL_API tessel_status tessel_advancing_front(const tessel_cloud *points,
                                                 const tessel_front_params *params,
@@ -1157,7 +1157,8 @@ typedef struct tessel_refine_stats {
  * them, set from the stars at the end for every vertex; colours averaged
  * from the edge's ends). params and stats may be NULL. The mesh must be
  * manifold and consistently oriented (as tessel_advancing_front makes it):
- * TESSEL_ERR_INVALID_ARG otherwise. On error the mesh is left as it was. */
+ * TESSEL_ERR_INVALID_ARG otherwise; TESSEL_ERR_LIMIT when the result would
+ * pass 2^32 / 3 triangles. On error the mesh is left as it was. */
 TESSEL_API tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
                                        const tessel_projector *projector,
                                        const tessel_refine_params *params,

@@ -2260,7 +2260,8 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
         return st;
     if (points->count < 3)
         return TESSEL_ERR_TOO_FEW_POINTS;
-    if (points->count >= (size_t)UINT32_MAX / 3)
+    /* Corner ids 3 t + i of up to about 2n triangles stay below 2^32. */
+    if (points->count > (size_t)UINT32_MAX / 8)
         return TESSEL_ERR_LIMIT;
     for (size_t i = 0; i < 3 * points->count; i++)
         if (!isfinite(points->xyz[i]))

@@ -355,6 +355,9 @@ static tessel_status grow(void **p, size_t *cap, size_t need, size_t size)
 
 static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
 {
+    /* Vertex ids and half-edge ids 3 t + i stay below TESSEL_NONE. */
+    if (r->nv + more_v >= UINT32_MAX || r->nt + more_t >= UINT32_MAX / 3)
+        return TESSEL_ERR_LIMIT;
     if (r->nv + more_v > r->cap_v) {
         size_t c1 = r->cap_v, c2 = r->cap_v;
         if (grow((void **)&r->xyz, &c1, r->nv + more_v, 3 * sizeof *r->xyz) ||
