@@ -450,8 +450,8 @@ static void fan_box(const gp *g, gp_frame *f, const uint32_t *idx, size_t count)
     for (size_t i = 0; i < count; i++) {
         const double *r = g->cand[idx[i]].rel;
         for (int a = 0; a < 3; a++) {
-            f->flo[a] = fmin(f->flo[a], r[a]);
-            f->fhi[a] = fmax(f->fhi[a], r[a]);
+            f->flo[a] = dmin(f->flo[a], r[a]);
+            f->fhi[a] = dmax(f->fhi[a], r[a]);
         }
     }
 }

@@ -311,7 +311,7 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
          * new triangles' box if v is farther from it than that. */
         double out = 0.0;
         for (int a = 0; a < 3; a++)
-            out = fmax(out, fmax(f->flo[a] - b->rel[a], b->rel[a] - f->fhi[a]));
+            out = dmax(out, dmax(f->flo[a] - b->rel[a], b->rel[a] - f->fhi[a]));
         if (out > (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * half)
             continue;
         if (cone.on) {

@@ -200,6 +200,9 @@ typedef struct gp_frame {
 /* ---- small helpers ---- */
 
 static inline int sgn(double x) { return (x > 0.0) - (x < 0.0); }
+/* fmin/fmax for finite values, inlined (the libm calls were 4% of the run). */
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
 
 static inline void pos(const gp *g, uint32_t i, double out[3])
 {

@@ -142,14 +142,15 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half)
                 const float *p = g->xyz + 3 * (size_t)i;
                 if ((double)p[ad] > hi_d)
                     break;
-                int s_i = st(g, i);
-                if (i == R || s_i == ST_DEAD || (s_i == ST_DONE && g->head[i] == NONE))
-                    continue;
+                /* Distance first: it needs only the coordinates at hand. */
                 double r0 = p[0] - c[0], r1 = p[1] - c[1], r2 = p[2] - c[2];
                 double a0 = fabs(r0), a1 = fabs(r1), a2 = fabs(r2);
                 double dinf = a0 > a1 ? a0 : a1;
                 dinf = dinf > a2 ? dinf : a2;
-                if (dinf > half)
+                if (dinf > half || i == R)
+                    continue;
+                int s_i = st(g, i);
+                if (s_i == ST_DEAD || (s_i == ST_DONE && g->head[i] == NONE))
                     continue;
                 if (g->box_count == g->box_cap &&
                     grow((void **)&g->box, &g->box_cap, g->box_count + 1, sizeof *g->box))
@@ -634,11 +635,11 @@ tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
     l2[1] = tsl_dot(d, d); /* bc */
     tsl_sub(pc, pa, d);
     l2[2] = tsl_dot(d, d); /* ca */
-    double e2 = fmax(l2[0], fmax(l2[1], l2[2]));
+    double e2 = dmax(l2[0], dmax(l2[1], l2[2]));
     /* Rounded up so that it bounds the true length. */
-    float la = (float)(sqrt(fmax(l2[0], l2[2])) * (1.0 + 1e-6));
-    float lb = (float)(sqrt(fmax(l2[0], l2[1])) * (1.0 + 1e-6));
-    float lc = (float)(sqrt(fmax(l2[1], l2[2])) * (1.0 + 1e-6));
+    float la = (float)(sqrt(dmax(l2[0], l2[2])) * (1.0 + 1e-6));
+    float lb = (float)(sqrt(dmax(l2[0], l2[1])) * (1.0 + 1e-6));
+    float lc = (float)(sqrt(dmax(l2[1], l2[2])) * (1.0 + 1e-6));
     if (la > g->maxe[a])
         g->maxe[a] = la;
     if (lb > g->maxe[b])
