@@ -241,10 +241,17 @@ static inline unsigned project_cached(gp *g, uint32_t R, const gp_frame *f, uint
     return c->flags;
 }
 
-static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp_frame *f)
+static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp_frame *f,
+                                const float lo[3], const float hi[3])
 {
     g->tstamp[t] = g->stamp;
     const gp_tri *T = &g->tri[t];
+    /* Outside the new triangles' box: cannot meet them. */
+    float tl[3], th[3];
+    tsl_gp_tri_box(g, T->v, tl, th);
+    if (tl[0] > hi[0] || th[0] < lo[0] || tl[1] > hi[1] || th[1] < lo[1] || tl[2] > hi[2] ||
+        th[2] < lo[2])
+        return TESSEL_OK;
     if (cone->on) {
         double q[2];
         unsigned fl = project_cached(g, cone->R, f, T->v[0], q);
@@ -257,7 +264,8 @@ static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp
         return TESSEL_ERR_NOMEM;
     gp_gtri *e = &g->gt[g->gt_count++];
     e->t = t;
-    tsl_gp_tri_box(g, T->v, e->lo, e->hi);
+    memcpy(e->lo, tl, sizeof tl);
+    memcpy(e->hi, th, sizeof th);
     return TESSEL_OK;
 }
 
@@ -301,6 +309,13 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
         cone.eps = 1e-9 * span * span;
     }
     g->cone = cone;
+    const float *r = g->xyz + 3 * (size_t)R;
+    float lo[3], hi[3];
+    for (int k = 0; k < 3; k++) {
+        /* The new triangles' box, rounded outward to floats. */
+        lo[k] = nextafterf((float)(r[k] + f->flo[k]), -INFINITY);
+        hi[k] = nextafterf((float)(r[k] + f->fhi[k]), INFINITY);
+    }
     tessel_status s;
     for (size_t k = 0; k < g->box_count; k++) {
         const gp_box *b = &g->box[k];
@@ -328,7 +343,7 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
         }
         for (uint32_t t = g->head[v]; t != NONE;) {
             const gp_tri *T = &g->tri[t];
-            if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f)) != TESSEL_OK)
+            if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f, lo, hi)) != TESSEL_OK)
                 return s;
             t = T->next[tri_pos(T, v)];
         }
@@ -336,20 +351,13 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     /* R's own triangles (R is not in its box). */
     for (uint32_t t = g->head[R]; t != NONE;) {
         const gp_tri *T = &g->tri[t];
-        if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f)) != TESSEL_OK)
+        if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f, lo, hi)) != TESSEL_OK)
             return s;
         t = T->next[tri_pos(T, R)];
     }
     /* Long triangles of the cells the box overlaps. */
     if (!g->lg_slots)
         return TESSEL_OK;
-    const float *r = g->xyz + 3 * (size_t)R;
-    float lo[3], hi[3];
-    for (int k = 0; k < 3; k++) {
-        /* The new triangles' box, rounded outward to floats. */
-        lo[k] = nextafterf((float)(r[k] + f->flo[k]), -INFINITY);
-        hi[k] = nextafterf((float)(r[k] + f->fhi[k]), INFINITY);
-    }
     uint32_t c0[3], c1[3];
     tsl_gp_lg_cells(g, lo, hi, c0, c1);
     for (uint32_t z = c0[2]; z <= c1[2]; z++)
@@ -362,12 +370,7 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
                     uint32_t t = g->lt_tri[e];
                     if (g->tstamp[t] == g->stamp)
                         continue;
-                    float tl[3], th[3];
-                    tsl_gp_tri_box(g, g->tri[t].v, tl, th);
-                    if (tl[0] > hi[0] || th[0] < lo[0] || tl[1] > hi[1] || th[1] < lo[1] ||
-                        tl[2] > hi[2] || th[2] < lo[2])
-                        continue;
-                    if ((s = guard_push(g, t, &cone, f)) != TESSEL_OK)
+                    if ((s = guard_push(g, t, &cone, f, lo, hi)) != TESSEL_OK)
                         return s;
                 }
             }

@@ -303,21 +303,6 @@ static size_t fan_size(const gp *g, uint32_t x)
     return c;
 }
 
-void tsl_gp_tri_box(const gp *g, const uint32_t v[3], float lo[3], float hi[3])
-{
-    const float *a = g->xyz + 3 * (size_t)v[0], *b = g->xyz + 3 * (size_t)v[1],
-                *c = g->xyz + 3 * (size_t)v[2];
-    for (int k = 0; k < 3; k++) {
-        float l = a[k], h = a[k];
-        l = b[k] < l ? b[k] : l;
-        h = b[k] > h ? b[k] : h;
-        l = c[k] < l ? c[k] : l;
-        h = c[k] > h ? c[k] : h;
-        lo[k] = l;
-        hi[k] = h;
-    }
-}
-
 /* ---- long triangles: those with an edge longer than ell can meet a new
  * triangle without having a vertex in the box the guard looks at, so they
  * are also listed in a hashed grid ---- */
