@@ -285,3 +285,175 @@ double tsl_orient3d(const double a[3], const double b[3], const double c[3], con
         return det;
     return orient3d_exact(a, b, c, d);
 }
+
+/* ------------------------------------------------------------------------ */
+/* Exact triangle tests: closed triangles meeting, decided by the signs of  */
+/* orient2d/orient3d only (used by the check, the advancing front, greedy). */
+/* ------------------------------------------------------------------------ */
+
+static inline int sgn(double x) { return (x > 0.0) - (x < 0.0); }
+/* Plain minimum / maximum of finite numbers (fmin/fmax handle NaN and are
+ * function calls). */
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
+/* Coordinate axis to drop so that the non-degenerate triangle abc projects
+ * to a non-degenerate triangle; its projected orientation sign in *orient
+ * (0 when abc is collinear). */
+static int drop_axis(const double a[3], const double b[3], const double c[3], int *orient)
+{
+    double u[3], v[3], n[3];
+    tsl_sub(b, a, u);
+    tsl_sub(c, a, v);
+    tsl_cross(u, v, n);
+    int first = 0;
+    if (fabs(n[1]) > fabs(n[first]))
+        first = 1;
+    if (fabs(n[2]) > fabs(n[first]))
+        first = 2;
+    for (int t = 0; t < 3; t++) {
+        int drop = (first + t) % 3;
+        int i = (drop + 1) % 3, j = (drop + 2) % 3;
+        double pa[2] = {a[i], a[j]}, pb[2] = {b[i], b[j]}, pc[2] = {c[i], c[j]};
+        int s = sgn(tsl_orient2d(pa, pb, pc));
+        if (s != 0) {
+            *orient = s;
+            return drop;
+        }
+    }
+    *orient = 0;
+    return 0;
+}
+
+bool tsl_triangle_degenerate(const double *p[3])
+{
+    int o;
+    drop_axis(p[0], p[1], p[2], &o);
+    return o == 0;
+}
+
+static inline void drop2(const double p[3], int drop, double out[2])
+{
+    out[0] = p[(drop + 1) % 3];
+    out[1] = p[(drop + 2) % 3];
+}
+
+/* r on the closed segment pq, given p, q, r collinear. */
+static bool on_segment2(const double p[2], const double q[2], const double r[2])
+{
+    return dmin(p[0], q[0]) <= r[0] && r[0] <= dmax(p[0], q[0]) && dmin(p[1], q[1]) <= r[1] &&
+           r[1] <= dmax(p[1], q[1]);
+}
+
+static bool segments_meet2(const double p[2], const double q[2], const double a[2],
+                           const double b[2])
+{
+    int d1 = sgn(tsl_orient2d(p, q, a)), d2 = sgn(tsl_orient2d(p, q, b));
+    int d3 = sgn(tsl_orient2d(a, b, p)), d4 = sgn(tsl_orient2d(a, b, q));
+    if (d1 * d2 < 0 && d3 * d4 < 0)
+        return true;
+    return (d1 == 0 && on_segment2(p, q, a)) || (d2 == 0 && on_segment2(p, q, b)) ||
+           (d3 == 0 && on_segment2(a, b, p)) || (d4 == 0 && on_segment2(a, b, q));
+}
+
+static bool in_triangle2(const double p[2], const double a[2], const double b[2],
+                         const double c[2], int o)
+{
+    return sgn(tsl_orient2d(a, b, p)) * o >= 0 && sgn(tsl_orient2d(b, c, p)) * o >= 0 &&
+           sgn(tsl_orient2d(c, a, p)) * o >= 0;
+}
+
+/* Closed segment pq meets closed non-degenerate triangle abc. */
+static bool segment_triangle(const double p[3], const double q[3], const double a[3],
+                             const double b[3], const double c[3])
+{
+    int sp = sgn(tsl_orient3d(a, b, c, p)), sq = sgn(tsl_orient3d(a, b, c, q));
+    if (sp * sq > 0)
+        return false;
+    if (sp == 0 && sq == 0) {
+        int o;
+        int drop = drop_axis(a, b, c, &o);
+        double p2[2], q2[2], a2[2], b2[2], c2[2];
+        drop2(p, drop, p2);
+        drop2(q, drop, q2);
+        drop2(a, drop, a2);
+        drop2(b, drop, b2);
+        drop2(c, drop, c2);
+        return in_triangle2(p2, a2, b2, c2, o) || in_triangle2(q2, a2, b2, c2, o) ||
+               segments_meet2(p2, q2, a2, b2) || segments_meet2(p2, q2, b2, c2) ||
+               segments_meet2(p2, q2, c2, a2);
+    }
+    /* The segment reaches the plane once; the line through it hits the
+     * closed triangle iff it passes its three edges on the same side. */
+    int s1 = sgn(tsl_orient3d(p, q, a, b));
+    int s2 = sgn(tsl_orient3d(p, q, b, c));
+    int s3 = sgn(tsl_orient3d(p, q, c, a));
+    bool pos = s1 > 0 || s2 > 0 || s3 > 0;
+    bool neg = s1 < 0 || s2 < 0 || s3 < 0;
+    return !(pos && neg);
+}
+
+bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const uint32_t ib[3],
+                             const double *pb[3])
+{
+    int shared = 0, sa[3], sb[3];
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            if (ia[i] == ib[j]) {
+                sa[shared] = i;
+                sb[shared] = j;
+                shared++;
+            }
+    if (shared == 3)
+        return true;
+    if (shared == 2) {
+        /* Common edge pq: they overlap iff coplanar with both apexes on the
+         * same side of pq. */
+        const double *p = pa[sa[0]], *q = pa[sa[1]];
+        const double *ra = pa[3 - sa[0] - sa[1]], *rb = pb[3 - sb[0] - sb[1]];
+        if (tsl_orient3d(p, q, ra, rb) != 0.0)
+            return false;
+        int o;
+        int drop = drop_axis(p, q, ra, &o);
+        double p2[2], q2[2], rb2[2];
+        drop2(p, drop, p2);
+        drop2(q, drop, q2);
+        drop2(rb, drop, rb2);
+        return sgn(tsl_orient2d(p2, q2, rb2)) == o;
+    }
+    if (shared == 1) {
+        /* Common vertex: they meet elsewhere iff the edge opposite it in one
+         * meets the other. When that edge lies strictly on one side of the
+         * other's plane, the triangle touches that plane at the common
+         * vertex only: no meeting. */
+        int i = sa[0], j = sb[0];
+        const double *b1 = pb[(j + 1) % 3], *b2 = pb[(j + 2) % 3];
+        const double *a1 = pa[(i + 1) % 3], *a2 = pa[(i + 2) % 3];
+        if (sgn(tsl_orient3d(pa[0], pa[1], pa[2], b1)) *
+                sgn(tsl_orient3d(pa[0], pa[1], pa[2], b2)) > 0 ||
+            sgn(tsl_orient3d(pb[0], pb[1], pb[2], a1)) *
+                sgn(tsl_orient3d(pb[0], pb[1], pb[2], a2)) > 0)
+            return false;
+        return segment_triangle(b1, b2, pa[0], pa[1], pa[2]) ||
+               segment_triangle(a1, a2, pb[0], pb[1], pb[2]);
+    }
+    /* Disjoint ids: planes first, then the six edge-triangle tests (closed
+     * triangles that meet always have an edge of one meeting the other). */
+    int s0 = sgn(tsl_orient3d(pa[0], pa[1], pa[2], pb[0]));
+    int s1 = sgn(tsl_orient3d(pa[0], pa[1], pa[2], pb[1]));
+    int s2 = sgn(tsl_orient3d(pa[0], pa[1], pa[2], pb[2]));
+    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+        return false;
+    s0 = sgn(tsl_orient3d(pb[0], pb[1], pb[2], pa[0]));
+    s1 = sgn(tsl_orient3d(pb[0], pb[1], pb[2], pa[1]));
+    s2 = sgn(tsl_orient3d(pb[0], pb[1], pb[2], pa[2]));
+    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+        return false;
+    for (int t = 0; t < 3; t++) {
+        if (segment_triangle(pa[t], pa[(t + 1) % 3], pb[0], pb[1], pb[2]))
+            return true;
+        if (segment_triangle(pb[t], pb[(t + 1) % 3], pa[0], pa[1], pa[2]))
+            return true;
+    }
+    return false;
+}
