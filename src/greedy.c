@@ -547,8 +547,13 @@ static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
     double rho2 = f->rho * f->rho;
     f->reach = f->rho;
     g->cand_count = 0;
+    /* The box reaches beyond the sphere (for the guard): skip what lies
+     * surely outside it (dinf is rounded to float, hence the margin). */
+    double skip = f->rho * (1.0 + 1e-6);
     for (size_t k = 0; k < g->box_count; k++) {
         const gp_box *x = &g->box[k];
+        if ((double)x->dinf > skip && x->idx != req_a && x->idx != req_b)
+            continue;
         if (!is_live(g, x->idx))
             continue;
         double d2 = tsl_dot(x->rel, x->rel);
