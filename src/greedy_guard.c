@@ -201,7 +201,7 @@ static inline double cone_dist2(const gp_cone *c, const double q[2])
  *    and s, or behind R across the bisector (R allowed). */
 enum { CONE_IN_MESH = 1, CONE_SIDE_E = 2, CONE_SIDE_S = 4, CONE_BEHIND = 8 };
 
-static unsigned cone_flags(const gp_cone *c, uint32_t v, const double q[2])
+static inline unsigned cone_flags(const gp_cone *c, uint32_t v, const double q[2])
 {
     if (v == c->R)
         return CONE_IN_MESH | CONE_SIDE_E | CONE_SIDE_S | CONE_BEHIND;
