@@ -64,12 +64,12 @@ tessel_smooth_params tessel_smooth_params_default(void)
 {
     tessel_smooth_params p;
     memset(&p, 0, sizeof p);
-    p.k = 24;
+    p.k = 30;
     p.sigma_rho = 2.0;
     p.sigma_w = 3.0;
-    p.passes = 3;
+    p.passes = 2;
     p.max_iterations = 20;
-    p.tolerance = 1e-3;
+    p.tolerance = 1e-2;
     p.min_neighbors = 6;
     p.spacing = 0.0;
     p.threads = 0;
@@ -125,31 +125,43 @@ static void ctl_setup(fit_ctl *f, const tessel_smooth_params *p, double h, doubl
 /* ---- fitting ---- */
 
 /* Unit eigenvector of the smallest eigenvalue of the symmetric matrix
- * m = {a00, a01, a02, a11, a12, a22}. Returns false when no plane is
- * defined: the two largest eigenvalues are not both positive (all points on
- * a line or at one spot). Closed-form eigenvalues (trigonometric solution
- * of the characteristic cubic) and the eigenvector as the longest cross
- * product of two rows of m - l1 I. When l1 is close to l2 that vector is
- * inaccurate (and the closed form's l1, l2 are only good to ~1e-8 l3 when
- * they are nearly equal), so Jacobi rotations decide instead. */
+ * m = {a00, a01, a02, a11, a12, a22}, a covariance (positive
+ * semi-definite). Returns false when no plane is defined: the two largest
+ * eigenvalues are not both positive (all points on a line or at one spot).
+ * The smallest eigenvalue l1 is the smallest root of the characteristic
+ * cubic, found by Newton's method from 0 (below every root, where Newton
+ * on this cubic rises monotonically to the smallest root; cheaper than the
+ * trigonometric closed form, whose acos and cos cost more than the whole
+ * iteration); the other two solve the deflated quadratic. The eigenvector
+ * is the longest cross product of two rows of m - l1 I. When l1 is close
+ * to l2 that vector is inaccurate, so Jacobi rotations decide instead. */
 static bool smallest_eigenvector(const double m[6], double n[3])
 {
     double a00 = m[0], a01 = m[1], a02 = m[2], a11 = m[3], a12 = m[4], a22 = m[5];
-    double q = (a00 + a11 + a22) / 3.0;
-    double b00 = a00 - q, b11 = a11 - q, b22 = a22 - q;
-    double p1 = a01 * a01 + a02 * a02 + a12 * a12;
-    double p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * p1;
-    if (!(p2 > 0.0))
-        return false; /* a multiple of the identity: a point or nothing */
-    double p = sqrt(p2 / 6.0);
-    double det = b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) +
-                 a02 * (a01 * a12 - b11 * a02);
-    double r = det / (2.0 * p * p * p);
-    r = r < -1.0 ? -1.0 : (r > 1.0 ? 1.0 : r);
-    double phi = acos(r) / 3.0;
-    double l3 = q + 2.0 * p * cos(phi);
-    double l1 = q + 2.0 * p * cos(phi + 2.0943951023931957);
-    double l2 = 3.0 * q - l1 - l3;
+    /* det(l I - m) = l^3 - tr l^2 + mi l - det */
+    double tr = a00 + a11 + a22;
+    double mi = a00 * a11 - a01 * a01 + a00 * a22 - a02 * a02 + a11 * a22 - a12 * a12;
+    double det = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) +
+                 a02 * (a01 * a12 - a11 * a02);
+    if (!(tr > 0.0))
+        return false;
+    double l1 = 0.0;
+    for (int it = 0; it < 100; it++) {
+        double f = ((l1 - tr) * l1 + mi) * l1 - det;
+        double df = (3.0 * l1 - 2.0 * tr) * l1 + mi;
+        if (!(df > 0.0) || !(f < 0.0))
+            break; /* at (or, by rounding, past) the root */
+        double step = -f / df;
+        l1 += step;
+        if (step <= 1e-15 * tr)
+            break;
+    }
+    /* l2, l3: roots of l^2 - (tr - l1) l + (mi - l1 (tr - l1)) */
+    double bq = tr - l1, cq = mi - l1 * bq;
+    double disc = bq * bq - 4.0 * cq;
+    double sq = sqrt(disc > 0.0 ? disc : 0.0);
+    double l3 = 0.5 * (bq + sq);
+    double l2 = l3 > 0.0 ? cq / l3 : 0.0;
     if (!(l3 > 0.0) || !(l2 > 1e-12 * l3))
         return false;
     if (l2 - l1 < 1e-4 * l3) {
@@ -170,20 +182,24 @@ static bool smallest_eigenvector(const double m[6], double n[3])
         if (l > bl)
             bl = l, best = i;
     }
+    if (!(bl > 0.0))
+        return false;
     double inv = 1.0 / sqrt(bl);
     n[0] = c[best][0] * inv, n[1] = c[best][1] * inv, n[2] = c[best][2] * inv;
     return true;
 }
 
-/* e^x for x <= 0 in single precision, in a form that vectorises (no libm
- * call): 2^(x log2 e) split into an integer power, put into the exponent
- * bits, and 2^f for |f| <= 1/2 by its degree-6 Taylor polynomial
- * (truncation < 1.3e-7). Relative error below 4e-7 for x >= -80 (measured
- * against exp on 10^7 arguments); below -80 it returns e^-80 ~ 2e-35, which
- * is zero for every sum it enters. Weights need no more precision. */
+/* e^x for -80 <= x <= 0 in single precision, in a form that vectorises
+ * (no libm call, no branch): 2^(x log2 e) split into an integer power, put
+ * into the exponent bits, and 2^f for |f| <= 1/2 by its degree-6 Taylor
+ * polynomial (truncation < 1.3e-7). Relative error below 4e-7 (measured
+ * against exp on 10^7 arguments). Callers clamp the argument to -80 in a
+ * separate loop (e^-80 ~ 2e-35 is zero for every sum it enters): a clamp
+ * inside the same loop keeps GCC from vectorising it. Weights need no more
+ * precision. */
+#define EXP_MIN (-80.0f)
 static inline float fast_exp(float x)
 {
-    x = x < -80.0f ? -80.0f : x;
     float y = x * 1.44269504f;
     float r = (y + 12582912.0f) - 12582912.0f; /* nearest integer: 1.5 * 2^23 */
     float f = y - r;
@@ -215,7 +231,36 @@ typedef struct fit_buf {
     float x[FIT_CAP], y[FIT_CAP], z[FIT_CAP];
     float w[FIT_CAP];  /* Gaussian distance weights */
     float om[FIT_CAP]; /* current IRLS weights */
+    float t[12][FIT_CAP]; /* products for the moments */
 } fit_buf;
+
+/* Sum and dot product over the FIT_LANES partial sums, added up in a fixed
+ * order. */
+static inline float lanes_total(const float acc[FIT_LANES])
+{
+    float s[FIT_LANES];
+    memcpy(s, acc, sizeof s);
+    for (int w = FIT_LANES / 2; w > 0; w /= 2)
+        for (int l = 0; l < w; l++)
+            s[l] += s[l + w];
+    return s[0];
+}
+static inline double lane_dot(const float *a, const float *b, size_t mp)
+{
+    float acc[FIT_LANES] = {0};
+    for (size_t j0 = 0; j0 < mp; j0 += FIT_LANES)
+        for (int l = 0; l < FIT_LANES; l++)
+            acc[l] += a[j0 + (size_t)l] * b[j0 + (size_t)l];
+    return (double)lanes_total(acc);
+}
+static inline double lane_sum(const float *a, size_t mp)
+{
+    float acc[FIT_LANES] = {0};
+    for (size_t j0 = 0; j0 < mp; j0 += FIT_LANES)
+        for (int l = 0; l < FIT_LANES; l++)
+            acc[l] += a[j0 + (size_t)l];
+    return (double)lanes_total(acc);
+}
 
 static void fit_pad(fit_buf *b)
 {
@@ -225,31 +270,20 @@ static void fit_pad(fit_buf *b)
 }
 
 /* Weighted moments about the query: W, sums of om d and of om d d^T. */
-static void plane_moments(const fit_buf *b, double W[1], double s[3], double mm[6])
+static void plane_moments(fit_buf *b, double W[1], double s[3], double mm[6])
 {
-    float acc[10][FIT_LANES];
-    memset(acc, 0, sizeof acc);
-    for (size_t j0 = 0; j0 < b->mp; j0 += FIT_LANES)
-        for (int l = 0; l < FIT_LANES; l++) {
-            size_t j = j0 + (size_t)l;
-            float o = b->om[j], x = b->x[j], y = b->y[j], z = b->z[j];
-            float ox = o * x, oy = o * y, oz = o * z;
-            acc[0][l] += o;
-            acc[1][l] += ox, acc[2][l] += oy, acc[3][l] += oz;
-            acc[4][l] += ox * x, acc[5][l] += ox * y, acc[6][l] += ox * z;
-            acc[7][l] += oy * y, acc[8][l] += oy * z, acc[9][l] += oz * z;
-        }
-    double t[10];
-    for (int i = 0; i < 10; i++) {
-        double v = 0.0;
-        for (int l = 0; l < FIT_LANES; l++)
-            v += (double)acc[i][l];
-        t[i] = v;
+    const size_t mp = b->mp;
+    float *ox = b->t[0], *oy = b->t[1], *oz = b->t[2];
+    for (size_t j = 0; j < mp; j++) {
+        ox[j] = b->om[j] * b->x[j];
+        oy[j] = b->om[j] * b->y[j];
+        oz[j] = b->om[j] * b->z[j];
     }
-    W[0] = t[0];
-    s[0] = t[1], s[1] = t[2], s[2] = t[3];
-    for (int i = 0; i < 6; i++)
-        mm[i] = t[4 + i];
+    W[0] = lane_sum(b->om, mp);
+    s[0] = lane_sum(ox, mp), s[1] = lane_sum(oy, mp), s[2] = lane_sum(oz, mp);
+    mm[0] = lane_dot(ox, b->x, mp), mm[1] = lane_dot(ox, b->y, mp);
+    mm[2] = lane_dot(ox, b->z, mp), mm[3] = lane_dot(oy, b->y, mp);
+    mm[4] = lane_dot(oy, b->z, mp), mm[5] = lane_dot(oz, b->z, mp);
 }
 
 /* Plane of the weighted neighbours: centroid c and unit normal n. */
@@ -268,42 +302,48 @@ static bool plane_from_moments(double W, const double s[3], const double mm[6], 
 static void plane_weights(fit_buf *b, const double n[3], double t, float inv_2sr2)
 {
     const float nx = (float)n[0], ny = (float)n[1], nz = (float)n[2], tf = (float)t;
-    for (size_t j = 0; j < b->mp; j++) {
+    const size_t mp = b->mp;
+    for (size_t j = 0; j < mp; j++) {
         float hq = nx * b->x[j] + ny * b->y[j] + nz * b->z[j] - tf;
-        b->om[j] = b->w[j] * fast_exp(-(hq * hq) * inv_2sr2);
+        float e = -(hq * hq) * inv_2sr2;
+        b->om[j] = e > EXP_MIN ? e : EXP_MIN;
     }
+    for (size_t j = 0; j < mp; j++)
+        b->om[j] = b->w[j] * fast_exp(b->om[j]);
 }
 
 /* Solves the symmetric positive definite 6x6 system a x = r (Cholesky);
  * false when a is not positive definite to working precision. */
-static bool solve6(double a[6][6], double r[6], double x[6])
+static bool solve6(const double a[6][6], const double r[6], double x[6])
 {
-    double L[6][6];
-    for (int i = 0; i < 6; i++)
-        for (int j = 0; j <= i; j++) {
+    double L[6][6], inv[6];
+    for (int i = 0; i < 6; i++) {
+        for (int j = 0; j < i; j++) {
             double s = a[i][j];
             for (int k = 0; k < j; k++)
                 s -= L[i][k] * L[j][k];
-            if (i == j) {
-                if (!(s > 1e-12 * a[i][i]))
-                    return false;
-                L[i][i] = sqrt(s);
-            } else {
-                L[i][j] = s / L[j][j];
-            }
+            L[i][j] = s * inv[j];
         }
+        double s = a[i][i];
+        for (int k = 0; k < i; k++)
+            s -= L[i][k] * L[i][k];
+        if (!(s > 1e-12 * a[i][i]))
+            return false;
+        L[i][i] = sqrt(s);
+        inv[i] = 1.0 / L[i][i];
+    }
     double y[6];
     for (int i = 0; i < 6; i++) {
         double s = r[i];
         for (int k = 0; k < i; k++)
             s -= L[i][k] * y[k];
-        y[i] = s / L[i][i];
+        y[i] = s * inv[i];
     }
     for (int i = 5; i >= 0; i--) {
         double s = y[i];
         for (int k = i + 1; k < 6; k++)
             s -= L[k][i] * x[k];
-        x[i] = s / L[i][i];
+        x[i] = s * inv[i];
     }
     return true;
 }
@@ -311,109 +351,188 @@ static bool solve6(double a[6][6], double r[6], double x[6])
 /* Beyond the paper: the height of the surface above the robust plane at
  * the query, from a weighted least-squares quadric
  *     z = a u^2 + b uv + c v^2 + d u + e v + f
- * over the plane (u, v in the plane through the query's projection, in
- * units of h; z the height above the plane), with the plane's final robust
+ * over the plane (u, v in the plane through the query's foot point, in
+ * units of h; z the height above the plane), with the plane's robust
  * weights. Q(p) then lies f above the plane's point instead of on it, which
  * removes the plane's bias on curved parts (about r^2 / 2R for a
- * neighbourhood of radius r on a surface of radius R). The curvature
- * terms carry a ridge penalty of QUAD_RIDGE times the total weight (in h
- * units), which keeps noisy flat neighbourhoods near the plane. Returns
- * false (use the plane) when the system is singular. */
-static bool quadric_height(const fit_buf *b, const double n[3], double t, double inv_h,
-                           double ridge, double *f_out)
+ * neighbourhood of radius r on a surface of radius R). The same weighted
+ * sums give the weighted covariance, hence the next plane of the
+ * iteration, so one pass over the neighbours does both. */
+typedef struct frame_sums {
+    double e1[3], e2[3]; /* plane axes, length 1/h */
+    double n[3], t;      /* the plane n.d = t the weights belong to */
+    double s[22];        /* moments, see frame_sweep */
+} frame_sums;
+
+/* One pass over the neighbours with weights om for the plane (n, t): the
+ * 15 moments of om u^i v^j (i + j <= 4), the 6 of om z u^i v^j (i + j <=
+ * 2) and that of om z^2, from products computed side by side. */
+static void frame_sweep(fit_buf *b, const double n[3], double t, double inv_h, frame_sums *fs)
 {
-    /* An orthonormal frame (e1, e2, n), e1 scaled by 1/h. */
-    double a[3] = {0, 0, 0}, e1[3], e2[3];
+    double a[3] = {0, 0, 0};
     a[fabs(n[0]) < 0.6 ? 0 : 1] = 1.0;
-    tsl_cross(a, n, e1);
-    double l = inv_h / tsl_norm(e1);
-    e1[0] *= l, e1[1] *= l, e1[2] *= l;
-    tsl_cross(n, e1, e2); /* |e2| = |e1| = 1/h */
-    const float ux = (float)e1[0], uy = (float)e1[1], uz = (float)e1[2];
-    const float vx = (float)e2[0], vy = (float)e2[1], vz = (float)e2[2];
+    tsl_cross(a, n, fs->e1);
+    double l = inv_h / tsl_norm(fs->e1);
+    fs->e1[0] *= l, fs->e1[1] *= l, fs->e1[2] *= l;
+    tsl_cross(n, fs->e1, fs->e2); /* |e2| = |e1| = 1/h */
+    fs->n[0] = n[0], fs->n[1] = n[1], fs->n[2] = n[2], fs->t = t;
+    const float ux = (float)fs->e1[0], uy = (float)fs->e1[1], uz = (float)fs->e1[2];
+    const float vx = (float)fs->e2[0], vy = (float)fs->e2[1], vz = (float)fs->e2[2];
     const float nx = (float)n[0], ny = (float)n[1], nz = (float)n[2], tf = (float)t;
-    /* 15 moments of o u^i v^j (i + j <= 4) and 6 of o z u^i v^j. */
-    float acc[21][FIT_LANES];
-    memset(acc, 0, sizeof acc);
-    for (size_t j0 = 0; j0 < b->mp; j0 += FIT_LANES)
-        for (int k = 0; k < FIT_LANES; k++) {
-            size_t j = j0 + (size_t)k;
-            float x = b->x[j], y = b->y[j], zz = b->z[j], o = b->om[j];
-            float u = ux * x + uy * y + uz * zz, v = vx * x + vy * y + vz * zz;
-            float z = nx * x + ny * y + nz * zz - tf;
-            float ou = o * u, ov = o * v, ouu = ou * u, ouv = ou * v, ovv = ov * v;
-            acc[0][k] += o, acc[1][k] += ou, acc[2][k] += ov;
-            acc[3][k] += ouu, acc[4][k] += ouv, acc[5][k] += ovv;
-            acc[6][k] += ouu * u, acc[7][k] += ouu * v, acc[8][k] += ouv * v;
-            acc[9][k] += ovv * v;
-            acc[10][k] += ouu * u * u, acc[11][k] += ouu * u * v, acc[12][k] += ouu * v * v;
-            acc[13][k] += ouv * v * v, acc[14][k] += ovv * v * v;
-            float oz = o * z;
-            acc[15][k] += oz, acc[16][k] += oz * u, acc[17][k] += oz * v;
-            acc[18][k] += oz * u * u, acc[19][k] += oz * u * v, acc[20][k] += oz * v * v;
-        }
-    double s[21];
-    for (int i = 0; i < 21; i++) {
-        double v = 0.0;
-        for (int k = 0; k < FIT_LANES; k++)
-            v += (double)acc[i][k];
-        s[i] = v;
+    const size_t mp = b->mp;
+    float *u = b->t[0], *v = b->t[1], *oz = b->t[2], *uu = b->t[3], *uv = b->t[4];
+    float *vv = b->t[5], *ou = b->t[6], *ov = b->t[7], *ouu = b->t[8], *ouv = b->t[9];
+    float *ovv = b->t[10], *z = b->t[11];
+    const float *o = b->om;
+    for (size_t j = 0; j < mp; j++) {
+        float x = b->x[j], y = b->y[j], zz = b->z[j];
+        float uj = ux * x + uy * y + uz * zz, vj = vx * x + vy * y + vz * zz;
+        float zj = nx * x + ny * y + nz * zz - tf;
+        u[j] = uj, v[j] = vj, z[j] = zj;
+        oz[j] = o[j] * zj;
+        uu[j] = uj * uj, uv[j] = uj * vj, vv[j] = vj * vj;
+        ou[j] = o[j] * uj, ov[j] = o[j] * vj;
+        ouu[j] = o[j] * uu[j], ouv[j] = o[j] * uv[j], ovv[j] = o[j] * vv[j];
     }
+    double *S = fs->s;
+    S[0] = lane_sum(o, mp), S[1] = lane_sum(ou, mp), S[2] = lane_sum(ov, mp);
+    S[3] = lane_sum(ouu, mp), S[4] = lane_sum(ouv, mp), S[5] = lane_sum(ovv, mp);
+    S[6] = lane_dot(ouu, u, mp), S[7] = lane_dot(ouu, v, mp);
+    S[8] = lane_dot(ouv, v, mp), S[9] = lane_dot(ovv, v, mp);
+    S[10] = lane_dot(ouu, uu, mp), S[11] = lane_dot(ouu, uv, mp);
+    S[12] = lane_dot(ouu, vv, mp), S[13] = lane_dot(ouv, vv, mp);
+    S[14] = lane_dot(ovv, vv, mp);
+    S[15] = lane_sum(oz, mp), S[16] = lane_dot(oz, u, mp), S[17] = lane_dot(oz, v, mp);
+    S[18] = lane_dot(oz, uu, mp), S[19] = lane_dot(oz, uv, mp), S[20] = lane_dot(oz, vv, mp);
+    S[21] = lane_dot(oz, z, mp);
+}
+
+/* The weighted plane from the sums: unit normal n2 and offset t2 (the
+ * plane n2.d = t2 through the weighted centroid). The covariance is taken
+ * in the frame (u, v, z / h), orthonormal up to the common scale 1/h. */
+static bool frame_plane(const frame_sums *fs, double inv_h, double n2[3], double *t2)
+{
+    const double *S = fs->s, W = S[0];
+    if (!(W > 1e-30))
+        return false;
+    double c0 = S[1] / W, c1 = S[2] / W, c2 = S[15] * inv_h / W;
+    double cov[6] = {S[3] / W - c0 * c0,
+                     S[4] / W - c0 * c1,
+                     S[16] * inv_h / W - c0 * c2,
+                     S[5] / W - c1 * c1,
+                     S[17] * inv_h / W - c1 * c2,
+                     S[21] * inv_h * inv_h / W - c2 * c2};
+    double ev[3];
+    if (!smallest_eigenvector(cov, ev))
+        return false;
+    double h = 1.0 / inv_h, c[3];
+    for (int a = 0; a < 3; a++) {
+        n2[a] = (ev[0] * fs->e1[a] + ev[1] * fs->e2[a]) * h + ev[2] * fs->n[a];
+        /* centroid relative to the query, world units */
+        c[a] = (c0 * fs->e1[a] + c1 * fs->e2[a]) * h * h + (c2 * h + fs->t) * fs->n[a];
+    }
+    if (!tsl_normalize(n2))
+        return false;
+    *t2 = tsl_dot(n2, c);
+    return true;
+}
+
+/* The quadric's height f above the plane at the query's foot point. The
+ * curvature terms carry a ridge penalty of `ridge` times the total weight
+ * (in h units): it keeps noisy flat neighbourhoods near the plane. False
+ * when the system is singular. */
+static bool frame_height(const frame_sums *fs, double ridge, double *f)
+{
     /* Unknowns (a, b, c, d, e, f); moment indices: 1, u, v, uu, uv, vv,
      * uuu, uuv, uvv, vvv, uuuu, uuuv, uuvv, uvvv, vvvv. */
-    double W = s[0], M[6][6] = {
-                         {s[10], s[11], s[12], s[6], s[7], s[3]},
-                         {s[11], s[12], s[13], s[7], s[8], s[4]},
-                         {s[12], s[13], s[14], s[8], s[9], s[5]},
-                         {s[6], s[7], s[8], s[3], s[4], s[1]},
-                         {s[7], s[8], s[9], s[4], s[5], s[2]},
-                         {s[3], s[4], s[5], s[1], s[2], s[0]},
-                     };
-    double r[6] = {s[18], s[19], s[20], s[16], s[17], s[15]}, x[6];
+    const double *S = fs->s, W = S[0];
+    double M[6][6] = {
+        {S[10], S[11], S[12], S[6], S[7], S[3]}, {S[11], S[12], S[13], S[7], S[8], S[4]},
+        {S[12], S[13], S[14], S[8], S[9], S[5]}, {S[6], S[7], S[8], S[3], S[4], S[1]},
+        {S[7], S[8], S[9], S[4], S[5], S[2]},    {S[3], S[4], S[5], S[1], S[2], S[0]},
+    };
+    double r[6] = {S[18], S[19], S[20], S[16], S[17], S[15]}, x[6];
     for (int i = 0; i < 3; i++)
         M[i][i] += ridge * W;
     if (!(W > 1e-30) || !solve6(M, r, x))
         return false;
-    *f_out = x[5];
+    *f = x[5];
     return true;
 }
 
 /* The robust fit for one query from its neighbours (offsets, sorted by
- * distance). On success writes the unit normal n and the offset t
- * (Q = q + t n) and the IRLS iterations. Returns false when there is no
- * fit (too few neighbours, or all of them on a line). */
-static bool robust_fit(const fit_ctl *f, fit_buf *b, double n[3], double *t_out,
-                       uint32_t *iterations)
+ * distance). On success writes the unit normal n, the displacement move
+ * (Q = q + move) and the IRLS iterations. Returns false when there is no
+ * fit (too few neighbours, or all of them on a line).
+ *
+ * IRLS: robust weights for the current plane, then the weighted plane of
+ * the neighbours, until the plane settles. The first plane is the
+ * Gaussian-weighted one (start == NULL: a first pass, the projector), or
+ * the plane through the query across the previous pass's normal `start`
+ * (later passes: the point already lies on the previous fit), which takes
+ * one step: each pass continues the iteration instead of restarting it.
+ * Q is the foot point on the last plane the weights belong to, lifted by
+ * the quadric's height over it (quadric on), or the foot point on the
+ * final plane (the paper's operator). */
+static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *start, double n[3],
+                       double move[3], uint32_t *iterations)
 {
     if (b->m < f->min_neighbors)
         return false;
     fit_pad(b);
     const float inv_2sw2 = (float)f->inv_2sw2;
-    for (size_t j = 0; j < b->mp; j++) {
-        float d2 = b->x[j] * b->x[j] + b->y[j] * b->y[j] + b->z[j] * b->z[j];
-        b->w[j] = j < b->m ? fast_exp(-d2 * inv_2sw2) : 0.0f;
-        b->om[j] = b->w[j];
+    const size_t mp = b->mp;
+    for (size_t j = 0; j < mp; j++) {
+        float e = -(b->x[j] * b->x[j] + b->y[j] * b->y[j] + b->z[j] * b->z[j]) * inv_2sw2;
+        b->w[j] = e > EXP_MIN ? e : EXP_MIN;
     }
-    double W, s[3], mm[6], c[3];
-    plane_moments(b, &W, s, mm);
-    if (!plane_from_moments(W, s, mm, c, n))
-        return false;
-    double t = tsl_dot(n, c);
-
-    /* IRLS: reweight by the robust norm's influence exp(-h^2 / 2 sr^2) and
-     * refit. A step whose weights collapse keeps the previous plane. */
-    uint32_t it = 0;
+    for (size_t j = 0; j < mp; j++)
+        b->w[j] = fast_exp(b->w[j]);
+    for (size_t j = b->m; j < mp; j++)
+        b->w[j] = 0.0f;
     const float inv_2sr2 = (float)f->inv_2sr2;
-    while (it < f->max_iterations) {
+    const double inv_h = 1.0 / f->h;
+    double t = 0.0;
+    uint32_t max_it = f->max_iterations;
+    if (start) {
+        tsl_load(start, n);
+        if (!tsl_normalize(n))
+            return false;
+        max_it = 1;
+    } else {
+        double W, s[3], mm[6], c[3];
+        memcpy(b->om, b->w, mp * sizeof *b->w);
+        plane_moments(b, &W, s, mm);
+        if (!plane_from_moments(W, s, mm, c, n))
+            return false;
+        t = tsl_dot(n, c);
+    }
+
+    frame_sums fs;
+    memset(&fs, 0, sizeof fs); /* (GCC cannot see that `have` guards it) */
+    bool have = false;         /* fs holds the sums of a successful step */
+    bool stepped = false; /* some step gave a plane */
+    uint32_t it = 0;
+    while (it < max_it) {
         it++;
         plane_weights(b, n, t, inv_2sr2);
-        plane_moments(b, &W, s, mm);
-        double n2[3];
-        if (!plane_from_moments(W, s, mm, c, n2))
-            break;
+        double n2[3], t2;
+        if (f->quadric) {
+            frame_sweep(b, n, t, inv_h, &fs);
+            if (!frame_plane(&fs, inv_h, n2, &t2))
+                break;
+            have = true;
+        } else {
+            double W, s[3], mm[6], c[3];
+            plane_moments(b, &W, s, mm);
+            if (!plane_from_moments(W, s, mm, c, n2))
+                break;
+            t2 = tsl_dot(n2, c);
+        }
+        stepped = true;
         if (tsl_dot(n2, n) < 0.0)
-            n2[0] = -n2[0], n2[1] = -n2[1], n2[2] = -n2[2];
-        double t2 = tsl_dot(n2, c), x[3];
+            n2[0] = -n2[0], n2[1] = -n2[1], n2[2] = -n2[2], t2 = -t2;
+        double x[3];
         tsl_cross(n, n2, x);
         bool done = fabs(t2 - t) <= f->tol_t && tsl_dot(x, x) <= f->tol_n * f->tol_n;
         n[0] = n2[0], n[1] = n2[1], n[2] = n2[2];
@@ -421,15 +540,16 @@ static bool robust_fit(const fit_ctl *f, fit_buf *b, double n[3], double *t_out,
         if (done)
             break;
     }
-    if (f->quadric) {
-        /* Weights of the final plane, then the height above it. */
-        plane_weights(b, n, t, inv_2sr2);
-        double hq;
-        if (quadric_height(b, n, t, 1.0 / f->h, f->ridge, &hq) && fabs(hq) <= f->quad_max)
-            t += hq;
-    }
-    *t_out = t;
+    if (start && !stepped)
+        return false; /* the warm start's step failed: no plane at all */
     *iterations = it;
+    double hq;
+    if (have && frame_height(&fs, f->ridge, &hq) && fabs(hq) <= f->quad_max) {
+        double h0 = fs.t + hq;
+        move[0] = h0 * fs.n[0], move[1] = h0 * fs.n[1], move[2] = h0 * fs.n[2];
+    } else {
+        move[0] = t * n[0], move[1] = t * n[1], move[2] = t * n[2];
+    }
     return true;
 }
 
@@ -459,10 +579,9 @@ static void plain_normal(const fit_buf *b, double n[3])
     n[0] = v[0], n[1] = v[3], n[2] = v[6];
 }
 
-/* Sign convention (returns true when it flipped n): agree with the nearest
- * cloud point's normal when the cloud has normals, else face the viewpoint
- * when there is one. */
-static bool orient(const float *nearest_normal, int has_viewpoint, const double viewpoint[3],
+/* Sign convention: agree with the nearest cloud point's normal when the
+ * cloud has normals, else face the viewpoint when there is one. */
+static void orient(const float *nearest_normal, int has_viewpoint, const double viewpoint[3],
                    const float q[3], double n[3])
 {
     double ref[3];
@@ -473,35 +592,28 @@ static bool orient(const float *nearest_normal, int has_viewpoint, const double 
         ref[1] = viewpoint[1] - q[1];
         ref[2] = viewpoint[2] - q[2];
     } else {
-        return false;
+        return;
     }
-    if (tsl_dot(n, ref) < 0.0) {
+    if (tsl_dot(n, ref) < 0.0)
         n[0] = -n[0], n[1] = -n[1], n[2] = -n[2];
-        return true;
-    }
-    return false;
 }
 
-/* Fit, orient and write one result (b as described at fit_buf). Returns
- * true when fitted. */
-static bool solve_one(const fit_ctl *f, const float q[3], fit_buf *b,
+/* Fit, orient and write one result (b as described at fit_buf; start:
+ * the normal to start the iterations from, or NULL for the Gaussian-weighted
+ * plane). Returns true when fitted. */
+static bool solve_one(const fit_ctl *f, const float q[3], fit_buf *b, const float *start,
                       const float *nearest_normal, int has_viewpoint, const double viewpoint[3],
                       float out[3], float normal[3], uint32_t *iterations)
 {
-    double n[3], t = 0.0;
+    double n[3], move[3] = {0, 0, 0};
     uint32_t its = 0;
-    bool fit = robust_fit(f, b, n, &t, &its);
+    bool fit = robust_fit(f, b, start, n, move, &its);
     if (!fit)
         plain_normal(b, n);
-    if (orient(nearest_normal, has_viewpoint, viewpoint, q, n))
-        t = -t; /* t is the offset along n */
-    if (fit) {
-        out[0] = (float)(q[0] + t * n[0]);
-        out[1] = (float)(q[1] + t * n[1]);
-        out[2] = (float)(q[2] + t * n[2]);
-    } else {
-        out[0] = q[0], out[1] = q[1], out[2] = q[2];
-    }
+    orient(nearest_normal, has_viewpoint, viewpoint, q, n);
+    out[0] = (float)(q[0] + move[0]);
+    out[1] = (float)(q[1] + move[1]);
+    out[2] = (float)(q[2] + move[2]);
     if (normal)
         normal[0] = (float)n[0], normal[1] = (float)n[1], normal[2] = (float)n[2];
     *iterations = its;
@@ -616,7 +728,8 @@ tessel_status tessel_project(const tessel_projector *pr, const float q[3], float
     b.filled = all_m;
     const float *nn = pr->normals ? pr->normals + 3 * (size_t)idx[0] : NULL;
     uint32_t its;
-    bool fit = solve_one(f, q, &b, nn, pr->has_viewpoint, pr->viewpoint, out, normal, &its);
+    bool fit =
+        solve_one(f, q, &b, NULL, nn, pr->has_viewpoint, pr->viewpoint, out, normal, &its);
     if (iterations)
         *iterations = its;
     return fit ? TESSEL_OK : TESSEL_ERR_TOO_FEW_POINTS;
@@ -931,7 +1044,15 @@ typedef struct block {
     size_t m;
     float x[BLOCK_CAP], y[BLOCK_CAP], z[BLOCK_CAP];
     uint32_t pos[BLOCK_CAP];
-    uint64_t sel[BLOCK_CAP];
+    /* Squared distances to the current query as their bit patterns, which
+     * order like the (non-negative) values and compare as integers, which
+     * vectorises where float comparisons do not (GCC keeps a branch for
+     * them under -ftrapping-math). */
+    int32_t d[BLOCK_CAP + 8];  /* padded with +infinity */
+    int32_t cd[BLOCK_CAP + 8]; /* those of the candidates, padded */
+    uint32_t rank[BLOCK_CAP + 8]; /* candidates before each */
+    uint32_t cj[BLOCK_CAP];  /* candidates' block slots */
+    uint64_t sel[BLOCK_CAP]; /* candidates sorted as (distance, slot) */
 } block;
 
 static inline uint32_t float_bits(float f)
@@ -947,6 +1068,17 @@ static inline uint32_t block_id(const block *b, const cell_grid *g, uint64_t key
     return g->perm[b->pos[(uint32_t)key]];
 }
 
+/* Number of the first m (rounded up to 8) values <= thr: eight partial
+ * counts, which vectorise. */
+static inline size_t count_below(const int32_t *d, size_t m, int32_t thr)
+{
+    uint32_t c[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (size_t j0 = 0; j0 < m; j0 += 8)
+        for (int l = 0; l < 8; l++)
+            c[l] += (uint32_t)(d[j0 + (size_t)l] <= thr);
+    return (size_t)c[0] + c[1] + c[2] + c[3] + c[4] + c[5] + c[6] + c[7];
+}
+
 /* The k nearest of the block within r2max. A threshold that admits a
  * little more than k candidates (from the previous query's k-th distance,
  * *guess) picks a few; they are sorted as 64-bit keys (distance bits, which
@@ -958,31 +1090,75 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
     const size_t m = b->m;
     const float qx = q[0], qy = q[1], qz = q[2];
     float thr = *guess < r2max ? *guess : r2max;
+    for (size_t j = 0; j < m; j++) {
+        float dx = b->x[j] - qx, dy = b->y[j] - qy, dz = b->z[j] - qz;
+        float d = (dx * dx + dy * dy) + dz * dz;
+        memcpy(&b->d[j], &d, sizeof d);
+    }
+    const int32_t inf_bits = 0x7f800000;
+    for (size_t j = m; j < ((m + 7) & ~(size_t)7); j++)
+        b->d[j] = inf_bits;
+    /* A threshold that admits at least k (or all within the cut-off) and,
+     * for the sort below, not many more. */
     size_t ns;
     for (;;) {
-        ns = 0;
-        /* Branch-free compaction: always store, advance when it passes. */
-        for (size_t j = 0; j < m; j++) {
-            float dx = b->x[j] - qx, dy = b->y[j] - qy, dz = b->z[j] - qz;
-            float d = (dx * dx + dy * dy) + dz * dz;
-            b->sel[ns] = (uint64_t)float_bits(d) << 32 | j;
-            ns += d <= thr;
-        }
+        ns = count_below(b->d, m, (int32_t)float_bits(thr));
         if (ns >= t->k || thr >= r2max)
             break;
-        thr = thr * 2.0f < r2max ? thr * 2.0f : r2max;
+        thr = thr * 1.15f < r2max ? thr * 1.15f : r2max;
     }
-    for (size_t i = 1; i < ns; i++) {
-        uint64_t v = b->sel[i];
-        size_t j = i;
-        while (j > 0 && b->sel[j - 1] > v) {
-            b->sel[j] = b->sel[j - 1];
-            j--;
+    while (ns > 2 * t->k + 16) {
+        float half = 0.5f * thr;
+        size_t nh = count_below(b->d, m, (int32_t)float_bits(half));
+        if (nh < t->k)
+            break;
+        thr = half, ns = nh;
+    }
+    /* Compaction, eight at a time: groups with none below the threshold
+     * (whole cells away from the query) are skipped; within a group,
+     * branch-free (always store, advance when it passes). */
+    const int32_t tb = (int32_t)float_bits(thr);
+    ns = 0;
+    for (size_t j0 = 0; j0 < m; j0 += 8) {
+        if (count_below(b->d + j0, 8, tb) == 0)
+            continue;
+        for (size_t j = j0; j < j0 + 8; j++) {
+            b->cj[ns] = (uint32_t)j;
+            ns += b->d[j] <= tb;
         }
-        b->sel[j] = v;
+    }
+    /* Sort by rank: candidate i goes to the number of candidates before it
+     * in (distance, slot) order. Quadratic, but branch-free and vectorised,
+     * and ns is only a little more than k. */
+    size_t np = (ns + 7) & ~(size_t)7;
+    for (size_t i = 0; i < ns; i++)
+        b->cd[i] = b->d[b->cj[i]];
+    for (size_t i = ns; i < np; i++)
+        b->cd[i] = inf_bits;
+    memset(b->sel, 0xff, ns * sizeof *b->sel); /* no key: NaN distance bits */
+    memset(b->rank, 0, np * sizeof *b->rank);
+    for (size_t j = 0; j < ns; j++) {
+        const int32_t dj = b->cd[j];
+        for (size_t i = 0; i < np; i++)
+            b->rank[i] += (uint32_t)(dj < b->cd[i]);
+    }
+    bool tie = false;
+    for (size_t i = 0; i < ns; i++) {
+        uint32_t r = b->rank[i];
+        tie |= b->sel[r] != UINT64_MAX;
+        b->sel[r] = (uint64_t)(uint32_t)b->cd[i] << 32 | b->cj[i];
+    }
+    if (tie) { /* equal distances share a rank: count earlier equals too */
+        for (size_t i = 0; i < ns; i++) {
+            const int32_t di = b->cd[i];
+            uint32_t r = 0;
+            for (size_t j = 0; j < ns; j++)
+                r += b->cd[j] < di || (b->cd[j] == di && j < i);
+            b->sel[r] = (uint64_t)(uint32_t)di << 32 | b->cj[i];
+        }
     }
     size_t keep = ns < t->k ? ns : t->k;
-    if (keep > 0) {
+    if (keep > 0 && tie) {
         /* Equal distances go in point-index order (rare): within runs that
          * are kept whole, and at the cut, where the run [a, end) gives its
          * smallest indices to the slots up to keep. */
@@ -1017,7 +1193,7 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
     t->cnt = keep;
     /* Next query: a little above this k-th distance. */
     if (keep > 0)
-        *guess = t->d[keep - 1] * 1.25f;
+        *guess = t->d[keep - 1] * 1.05f;
 }
 
 /* ---- smoothing passes ---- */
@@ -1132,7 +1308,7 @@ static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pas
         fb->m = fb->filled = t.cnt;
         uint32_t its;
         const float *nn = x->ref_nrm && t.cnt ? x->ref_nrm + 3 * (size_t)t.pos[0] : NULL;
-        bool fit = solve_one(f, q, fb, nn, x->has_viewpoint, x->viewpoint,
+        bool fit = solve_one(f, q, fb, NULL, nn, x->has_viewpoint, x->viewpoint,
                              x->out_xyz + 3 * (size_t)s, x->out_nrm + 3 * (size_t)s, &its);
         count_fit(pc, fit, its, f->max_iterations);
     }
@@ -1157,8 +1333,8 @@ static void refit_range(const pass_ctx *x, fit_buf *fb, size_t s0, size_t s1, pa
         fb->m = fb->filled = m;
         uint32_t its;
         const float *nn = x->ref_nrm && m ? x->ref_nrm + 3 * (size_t)nb[0] : NULL;
-        bool fit = solve_one(f, q, fb, nn, x->has_viewpoint, x->viewpoint, x->out_xyz + 3 * s,
-                             x->out_nrm + 3 * s, &its);
+        bool fit = solve_one(f, q, fb, x->ref_nrm + 3 * s, nn, x->has_viewpoint, x->viewpoint,
+                             x->out_xyz + 3 * s, x->out_nrm + 3 * s, &its);
         count_fit(pc, fit, its, f->max_iterations);
     }
 }

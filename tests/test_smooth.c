@@ -527,7 +527,7 @@ static void test_args(void)
     bad[3].sigma_w = NAN;
     bad[4].passes = 0;
     bad[5].tolerance = -1;
-    bad[6].min_neighbors = 30; /* > k */
+    bad[6].min_neighbors = bad[6].k + 1; /* > k */
     bad[7].spacing = -1;
     for (int i = 0; i < 8; i++)
         CHECK_MSG(tessel_smooth(&c, &out, &bad[i], NULL, NULL) == TESSEL_ERR_INVALID_ARG,
