@@ -74,21 +74,6 @@ int tessel_mesh_report_valid(const tessel_mesh_report *r)
 /* Small helpers                                                             */
 /* ------------------------------------------------------------------------ */
 
-static inline int sgn(double x) { return (x > 0.0) - (x < 0.0); }
-
-/* Exact collinearity of three points: all three coordinate projections
- * have zero orientation. */
-static bool collinear3(const double a[3], const double b[3], const double c[3])
-{
-    for (int drop = 0; drop < 3; drop++) {
-        int u = (drop + 1) % 3, v = (drop + 2) % 3;
-        double pa[2] = {a[u], a[v]}, pb[2] = {b[u], b[v]}, pc[2] = {c[u], c[v]};
-        if (tsl_orient2d(pa, pb, pc) != 0.0)
-            return false;
-    }
-    return true;
-}
-
 /* Union-find with path halving; the smaller index becomes the root. */
 static uint32_t uf_find(uint32_t *p, uint32_t x)
 {
@@ -864,7 +849,8 @@ static tessel_status classify(const tessel_mesh *m, uint8_t **kind_out, int thre
         tsl_load(m->xyz + 3 * (size_t)t[0], a);
         tsl_load(m->xyz + 3 * (size_t)t[1], b);
         tsl_load(m->xyz + 3 * (size_t)t[2], c);
-        kind[f] = collinear3(a, b, c) ? KIND_ZERO_AREA : KIND_OK;
+        const double *p[3] = {a, b, c};
+        kind[f] = tsl_triangle_degenerate(p) ? KIND_ZERO_AREA : KIND_OK;
     }
     *kind_out = kind;
     return TESSEL_OK;
