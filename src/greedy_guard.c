@@ -8,166 +8,12 @@
  * Theorem 4.1) relies on its sampling assumptions here instead. */
 #include "greedy_internal.h"
 
-static int projection_axis(const double a[3], const double b[3], const double c[3],
-                           int *orient)
-{
-    double u[3], v[3], nn[3];
-    tsl_sub(b, a, u);
-    tsl_sub(c, a, v);
-    tsl_cross(u, v, nn);
-    int first = 0;
-    if (fabs(nn[1]) > fabs(nn[first]))
-        first = 1;
-    if (fabs(nn[2]) > fabs(nn[first]))
-        first = 2;
-    for (int t = 0; t < 3; t++) {
-        int drop = (first + t) % 3;
-        int i = (drop + 1) % 3, j = (drop + 2) % 3;
-        double pa[2] = {a[i], a[j]}, pb[2] = {b[i], b[j]}, pc[2] = {c[i], c[j]};
-        int s = sgn(tsl_orient2d(pa, pb, pc));
-        if (s != 0) {
-            *orient = s;
-            return drop;
-        }
-    }
-    *orient = 0;
-    return 0;
-}
-
-static inline void proj2(const double p[3], int drop, double out[2])
-{
-    out[0] = p[(drop + 1) % 3];
-    out[1] = p[(drop + 2) % 3];
-}
-
 /* Exact: a, b, c collinear (a zero-area triangle). */
 int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3])
 {
-    for (int drop = 0; drop < 3; drop++) {
-        double pa[2], pb[2], pc[2];
-        proj2(a, drop, pa);
-        proj2(b, drop, pb);
-        proj2(c, drop, pc);
-        if (tsl_orient2d(pa, pb, pc) != 0.0)
-            return 0;
-    }
-    return 1;
+    const double *p[3] = {a, b, c};
+    return tsl_triangle_degenerate(p);
 }
-
-static int on_segment2(const double p[2], const double q[2], const double r[2])
-{
-    return fmin(p[0], q[0]) <= r[0] && r[0] <= fmax(p[0], q[0]) && fmin(p[1], q[1]) <= r[1] &&
-           r[1] <= fmax(p[1], q[1]);
-}
-
-static int segments_meet2(const double p[2], const double q[2], const double a[2],
-                          const double b[2])
-{
-    int d1 = sgn(tsl_orient2d(p, q, a)), d2 = sgn(tsl_orient2d(p, q, b));
-    int d3 = sgn(tsl_orient2d(a, b, p)), d4 = sgn(tsl_orient2d(a, b, q));
-    if (d1 * d2 < 0 && d3 * d4 < 0)
-        return 1;
-    return (d1 == 0 && on_segment2(p, q, a)) || (d2 == 0 && on_segment2(p, q, b)) ||
-           (d3 == 0 && on_segment2(a, b, p)) || (d4 == 0 && on_segment2(a, b, q));
-}
-
-static int in_triangle2(const double p[2], const double a[2], const double b[2],
-                        const double c[2], int o)
-{
-    return sgn(tsl_orient2d(a, b, p)) * o >= 0 && sgn(tsl_orient2d(b, c, p)) * o >= 0 &&
-           sgn(tsl_orient2d(c, a, p)) * o >= 0;
-}
-
-static int coplanar_segment_triangle(const double p[3], const double q[3], const double a[3],
-                                     const double b[3], const double c[3])
-{
-    int o;
-    int drop = projection_axis(a, b, c, &o);
-    double p2[2], q2[2], a2[2], b2[2], c2[2];
-    proj2(p, drop, p2);
-    proj2(q, drop, q2);
-    proj2(a, drop, a2);
-    proj2(b, drop, b2);
-    proj2(c, drop, c2);
-    return in_triangle2(p2, a2, b2, c2, o) || in_triangle2(q2, a2, b2, c2, o) ||
-           segments_meet2(p2, q2, a2, b2) || segments_meet2(p2, q2, b2, c2) ||
-           segments_meet2(p2, q2, c2, a2);
-}
-
-/* Closed segment pq meets closed non-degenerate triangle abc. */
-static int segment_triangle(const double p[3], const double q[3], const double a[3],
-                            const double b[3], const double c[3])
-{
-    int sp = sgn(tsl_orient3d(a, b, c, p)), sq = sgn(tsl_orient3d(a, b, c, q));
-    if (sp * sq > 0)
-        return 0;
-    if (sp == 0 && sq == 0)
-        return coplanar_segment_triangle(p, q, a, b, c);
-    int s1 = sgn(tsl_orient3d(p, q, a, b));
-    int s2 = sgn(tsl_orient3d(p, q, b, c));
-    int s3 = sgn(tsl_orient3d(p, q, c, a));
-    int pos_ = s1 > 0 || s2 > 0 || s3 > 0;
-    int neg = s1 < 0 || s2 < 0 || s3 < 0;
-    return !(pos_ && neg);
-}
-
-static int triangles_meet(const double *a[3], const double *b[3])
-{
-    int s0 = sgn(tsl_orient3d(a[0], a[1], a[2], b[0]));
-    int s1 = sgn(tsl_orient3d(a[0], a[1], a[2], b[1]));
-    int s2 = sgn(tsl_orient3d(a[0], a[1], a[2], b[2]));
-    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
-        return 0;
-    s0 = sgn(tsl_orient3d(b[0], b[1], b[2], a[0]));
-    s1 = sgn(tsl_orient3d(b[0], b[1], b[2], a[1]));
-    s2 = sgn(tsl_orient3d(b[0], b[1], b[2], a[2]));
-    if ((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
-        return 0;
-    for (int k = 0; k < 3; k++) {
-        if (segment_triangle(a[k], a[(k + 1) % 3], b[0], b[1], b[2]))
-            return 1;
-        if (segment_triangle(b[k], b[(k + 1) % 3], a[0], a[1], a[2]))
-            return 1;
-    }
-    return 0;
-}
-
-/* Non-degenerate triangles with vertex ids ia, ib and coordinates pa, pb
- * meet in more than their shared vertex or edge (a duplicate counts). */
-static int faces_intersect(const uint32_t ia[3], const uint32_t ib[3], const double *pa[3],
-                           const double *pb[3])
-{
-    int shared = 0, sa[3], sb[3];
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            if (ia[i] == ib[j]) {
-                sa[shared] = i;
-                sb[shared] = j;
-                shared++;
-            }
-    if (shared == 3)
-        return 1;
-    if (shared == 2) {
-        const double *p = pa[sa[0]], *q = pa[sa[1]];
-        const double *ra = pa[3 - sa[0] - sa[1]], *rb = pb[3 - sb[0] - sb[1]];
-        if (tsl_orient3d(p, q, ra, rb) != 0.0)
-            return 0;
-        int o;
-        int drop = projection_axis(p, q, ra, &o);
-        double p2[2], q2[2], rb2[2];
-        proj2(p, drop, p2);
-        proj2(q, drop, q2);
-        proj2(rb, drop, rb2);
-        return sgn(tsl_orient2d(p2, q2, rb2)) == o;
-    }
-    if (shared == 1) {
-        int i = sa[0], j = sb[0];
-        return segment_triangle(pb[(j + 1) % 3], pb[(j + 2) % 3], pa[0], pa[1], pa[2]) ||
-               segment_triangle(pa[(i + 1) % 3], pa[(i + 2) % 3], pb[0], pb[1], pb[2]);
-    }
-    return triangles_meet(pa, pb);
-}
-
 
 /* ---- the free-cone certificate and the guard ---- */
 
@@ -397,7 +243,7 @@ int tsl_gp_guard_ok(gp *g, const uint32_t v[3])
         for (int k = 0; k < 3; k++)
             pos(g, T->v[k], q[k]);
         const double *pb[3] = {q[0], q[1], q[2]};
-        if (faces_intersect(v, T->v, pa, pb))
+        if (tsl_triangles_intersect(v, pa, T->v, pb))
             return 0;
     }
     return 1;
