@@ -18,7 +18,7 @@ shift
 ours=$build/bench/bench_kdtree
 theirs=$build/bench/bench_nanoflann
 [ -x "$ours" ] || { echo "$0: $ours not built" >&2; exit 1; }
-[ -x "$theirs" ] || { echo "$0: $theirs not built (nanoflann or C++ missing)" >&2; exit 1; }
+[ -x "$theirs" ] || { echo "$0: $theirs not built (configure with -DTESSEL_BENCH_PEERS=ON; needs nanoflann and C++)" >&2; exit 1; }
 
 max_n=10000000
 queries=1000000
