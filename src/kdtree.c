@@ -12,9 +12,9 @@
  * built, which lets the build run subtrees as independent OpenMP tasks and
  * still produce the same tree for any thread count. The median is found by
  * quickselect with a branch-free partition (twice as fast as Floyd-Rivest's
- * branchy one here). An inner node stores
- * the largest coordinate of its left part and the smallest of its right
- * part on the split axis (the gap between them prunes for free).
+ * branchy one here). An inner node stores the largest coordinate of its
+ * left part and the smallest of its right part on the split axis (the gap
+ * between them prunes for free).
  *
  * Queries descend into the nearer child first and visit the other one only
  * if the box distance — the sum of the three per-axis distances to the
@@ -23,10 +23,16 @@
  * operations, in the same order, as a point's distance, and rounding is
  * monotone, so the bound never exceeds the float distance of any point in
  * the subtree: results are exactly those of a brute-force scan, ties
- * (equal float distances) broken by increasing index.
+ * (equal float distances) broken by increasing index. That argument needs
+ * each product rounded on its own: no fused multiply-add (GCC in ISO C mode
+ * does not contract; clang is told below).
  *
  * Measured against a uniform grid and nanoflann: docs/neighbours.md. */
 #include "internal.h"
+
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
 
 #include <stdlib.h>
 #include <string.h>

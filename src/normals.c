@@ -46,6 +46,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+
 #define NORMALS_K_MIN 3
 #define NORMALS_K_MAX 256
 /* knn + PCA run in this many slices, with a progress call after each. */
@@ -62,7 +66,9 @@ tessel_normals_params tessel_normals_params_default(void)
     return p;
 }
 
-/* The index's float squared distance (same association). */
+/* The index's float squared distance: same association and, like the
+ * index, no fused multiply-add, so the reverse-edge test compares equal
+ * values bit for bit. */
 static inline float dist2_of(const float *p, const float *q)
 {
     float dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
