@@ -4,8 +4,9 @@
  *
  * Layout. The index keeps its own copy of the points as 16-byte records
  * {x, y, z, original index}, reordered so every subtree is one contiguous
- * range: a leaf's points share cache lines and the queries never touch the
- * caller's array. Nodes are stored in depth-first order (the left child
+ * range: a leaf's points share cache lines, and queries read the caller's
+ * array only to recompute distances the caller gave no room for (more than
+ * 256 results without a dist2 array). Nodes are stored in depth-first order (the left child
  * follows its parent). Each split cuts the node's points at the median of
  * the axis of widest extent, so the tree shape depends on the count only:
  * the node number of every right child is known before the left subtree is
