@@ -6,11 +6,11 @@
  * {x, y, z, original index}, reordered so every subtree is one contiguous
  * range: a leaf's points share cache lines, and queries read the caller's
  * array only to recompute distances the caller gave no room for (more than
- * 256 results without a dist2 array). Nodes are stored in depth-first order (the left child
- * follows its parent). Each split cuts the node's points at the median of
- * the axis of widest extent, so the tree shape depends on the count only:
- * the node number of every right child is known before the left subtree is
- * built, which lets the build run subtrees as independent OpenMP tasks and
+ * 256 results without a dist2 array). Nodes are stored in depth-first
+ * order (the left child follows its parent). Each split cuts the node's
+ * points at the median of the axis of widest extent, so the tree shape
+ * depends on the count only: the node number of every right child is known
+ * before the left subtree is built, which lets the build run subtrees as independent OpenMP tasks and
  * still produce the same tree for any thread count. The median is found by
  * quickselect with a branch-free partition (twice as fast as Floyd-Rivest's
  * branchy one here). An inner node stores the largest coordinate of its
