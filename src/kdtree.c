@@ -10,10 +10,10 @@
  * order (the left child follows its parent). Each split cuts the node's
  * points at the median of the axis of widest extent, so the tree shape
  * depends on the count only: the node number of every right child is known
- * before the left subtree is built, which lets the build run subtrees as independent OpenMP tasks and
- * still produce the same tree for any thread count. The median is found by
- * quickselect with a branch-free partition (twice as fast as Floyd-Rivest's
- * branchy one here). An inner node stores the largest coordinate of its
+ * before the left subtree is built, which lets the build run subtrees as
+ * independent OpenMP tasks and still produce the same tree for any thread
+ * count. The median is found by quickselect with a branch-free partition
+ * (twice as fast as Floyd-Rivest's branchy one here). An inner node stores the largest coordinate of its
  * left part and the smallest of its right part on the split axis (the gap
  * between them prunes for free).
  *
