@@ -13,9 +13,9 @@
  * before the left subtree is built, which lets the build run subtrees as
  * independent OpenMP tasks and still produce the same tree for any thread
  * count. The median is found by quickselect with a branch-free partition
- * (twice as fast as Floyd-Rivest's branchy one here). An inner node stores the largest coordinate of its
- * left part and the smallest of its right part on the split axis (the gap
- * between them prunes for free).
+ * (twice as fast as Floyd-Rivest's branchy one here). An inner node
+ * stores the largest coordinate of its left part and the smallest of its
+ * right part on the split axis (the gap between them prunes for free).
  *
  * Queries descend into the nearer child first and visit the other one only
  * if the box distance — the sum of the three per-axis distances to the
