@@ -291,7 +291,8 @@ TESSEL_API size_t tessel_index_knn(const tessel_index *index, const float q[3],
 
 /* All points with squared distance <= radius^2 from q, sorted like knn.
  * Writes at most cap of them (the nearest) and returns how many there are
- * in all (which may exceed cap). */
+ * in all (which may exceed cap). dist2 may be NULL. A query point with a NaN
+ * or infinite coordinate finds nothing (returns 0), in knn too. */
 TESSEL_API size_t tessel_index_radius(const tessel_index *index, const float q[3],
                                       float radius, uint32_t *idx, float *dist2,
                                       size_t cap);
@@ -312,7 +313,8 @@ TESSEL_API tessel_status tessel_index_knn_batch(const tessel_index *index,
 typedef struct tessel_stats_params {
     size_t sample_size;        /* spacing is measured on at most this many
                                   points (evenly strided); default 100000 */
-    uint32_t outlier_k;        /* neighbours for the density test; default 8 */
+    uint32_t outlier_k;        /* neighbours for the density test, 1..256;
+                                  default 8 */
     double outlier_factor;     /* a point is an isolated outlier when its mean
                                   distance to its outlier_k neighbours exceeds
                                   this many times the cloud's median of that
