@@ -229,7 +229,8 @@ typedef struct fit_buf {
     size_t filled; /* slots holding coordinates (>= m): the k nearest */
     size_t mp;     /* m padded to a multiple of FIT_LANES */
     float x[FIT_CAP], y[FIT_CAP], z[FIT_CAP];
-    float w[FIT_CAP];  /* Gaussian distance weights */
+    float ew[FIT_CAP]; /* exponent of the Gaussian distance weight */
+    float on[FIT_CAP]; /* 1 for the neighbours that enter the fit, else 0 */
     float om[FIT_CAP]; /* current IRLS weights */
     float t[12][FIT_CAP]; /* products for the moments */
 } fit_buf;
@@ -298,18 +299,19 @@ static bool plane_from_moments(double W, const double s[3], const double mm[6], 
     return smallest_eigenvector(cov, n);
 }
 
-/* Robust weights om = w exp(-h^2 / 2 sigma_rho^2) for the plane n.d = t. */
+/* Robust weights om = w exp(-h^2 / 2 sigma_rho^2) for the plane n.d = t,
+ * w the Gaussian distance weight (one exp for both). */
 static void plane_weights(fit_buf *b, const double n[3], double t, float inv_2sr2)
 {
     const float nx = (float)n[0], ny = (float)n[1], nz = (float)n[2], tf = (float)t;
     const size_t mp = b->mp;
     for (size_t j = 0; j < mp; j++) {
         float hq = nx * b->x[j] + ny * b->y[j] + nz * b->z[j] - tf;
-        float e = -(hq * hq) * inv_2sr2;
+        float e = b->ew[j] - (hq * hq) * inv_2sr2;
         b->om[j] = e > EXP_MIN ? e : EXP_MIN;
     }
     for (size_t j = 0; j < mp; j++)
-        b->om[j] = b->w[j] * fast_exp(b->om[j]);
+        b->om[j] = b->on[j] * fast_exp(b->om[j]);
 }
 
 /* Solves the symmetric positive definite 6x6 system a x = r (Cholesky);
@@ -366,7 +368,8 @@ typedef struct frame_sums {
 
 /* One pass over the neighbours with weights om for the plane (n, t): the
  * 15 moments of om u^i v^j (i + j <= 4), the 6 of om z u^i v^j (i + j <=
- * 2) and that of om z^2, from products computed side by side. */
+ * 2) and that of om z^2. Order of s: 1, u, v, uu, uv, vv, uuu, uuv, uvv,
+ * vvv, uuuu, uuuv, uuvv, uvvv, vvvv, z, zu, zv, zuu, zuv, zvv, zz. */
 static void frame_sweep(fit_buf *b, const double n[3], double t, double inv_h, frame_sums *fs)
 {
     double a[3] = {0, 0, 0};
@@ -482,14 +485,10 @@ static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *start, double 
     fit_pad(b);
     const float inv_2sw2 = (float)f->inv_2sw2;
     const size_t mp = b->mp;
-    for (size_t j = 0; j < mp; j++) {
-        float e = -(b->x[j] * b->x[j] + b->y[j] * b->y[j] + b->z[j] * b->z[j]) * inv_2sw2;
-        b->w[j] = e > EXP_MIN ? e : EXP_MIN;
-    }
     for (size_t j = 0; j < mp; j++)
-        b->w[j] = fast_exp(b->w[j]);
-    for (size_t j = b->m; j < mp; j++)
-        b->w[j] = 0.0f;
+        b->ew[j] = -(b->x[j] * b->x[j] + b->y[j] * b->y[j] + b->z[j] * b->z[j]) * inv_2sw2;
+    for (size_t j = 0; j < mp; j++)
+        b->on[j] = j < b->m ? 1.0f : 0.0f;
     const float inv_2sr2 = (float)f->inv_2sr2;
     const double inv_h = 1.0 / f->h;
     double t = 0.0;
@@ -501,7 +500,10 @@ static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *start, double 
         max_it = 1;
     } else {
         double W, s[3], mm[6], c[3];
-        memcpy(b->om, b->w, mp * sizeof *b->w);
+        for (size_t j = 0; j < mp; j++)
+            b->om[j] = b->ew[j] > EXP_MIN ? b->ew[j] : EXP_MIN;
+        for (size_t j = 0; j < mp; j++)
+            b->om[j] = b->on[j] * fast_exp(b->om[j]);
         plane_moments(b, &W, s, mm);
         if (!plane_from_moments(W, s, mm, c, n))
             return false;
@@ -795,16 +797,24 @@ static inline size_t hash_key(uint64_t key)
 
 /* Sorts the points by cell with a stable LSD radix sort on the Morton key
  * (only the bytes in use), so equal cells keep increasing point order. */
-static tessel_status grid_build(cell_grid *g, const float *xyz, size_t n, double cell)
+static tessel_status grid_build(cell_grid *g, const float *xyz, size_t n, double cell,
+                                int threads)
 {
     memset(g, 0, sizeof *g);
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < n; i++)
-        for (int a = 0; a < 3; a++) {
-            double v = xyz[3 * i + a];
-            lo[a] = v < lo[a] ? v : lo[a];
-            hi[a] = v > hi[a] ? v : hi[a];
-        }
+    /* Minima and maxima are exact: any thread count gives the same box. */
+    float lx = INFINITY, ly = INFINITY, lz = INFINITY, hx = -INFINITY, hy = -INFINITY,
+          hz = -INFINITY;
+    (void)threads;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(threads) schedule(static) \
+    reduction(min : lx, ly, lz) reduction(max : hx, hy, hz)
+#endif
+    for (size_t i = 0; i < n; i++) {
+        const float *q = xyz + 3 * i;
+        lx = q[0] < lx ? q[0] : lx, ly = q[1] < ly ? q[1] : ly, lz = q[2] < lz ? q[2] : lz;
+        hx = q[0] > hx ? q[0] : hx, hy = q[1] > hy ? q[1] : hy, hz = q[2] > hz ? q[2] : hz;
+    }
+    double lo[3] = {lx, ly, lz}, hi[3] = {hx, hy, hz};
     /* 21 bits per axis; a coarser grid is still exact, only slower. */
     double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
     if (ext / cell > 2000000.0)
@@ -828,6 +838,9 @@ static tessel_status grid_build(cell_grid *g, const float *xyz, size_t n, double
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!k0 || !k1 || !i0 || !i1 || !g->sxyz)
         goto done;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(threads) schedule(static)
+#endif
     for (size_t i = 0; i < n; i++) {
         const float *p = xyz + 3 * i;
         k0[i] = morton(cell_of(g, p, 0), cell_of(g, p, 1), cell_of(g, p, 2));
@@ -937,7 +950,7 @@ static size_t grid_ring(const cell_grid *g, const uint32_t cc[3], int ring, uint
 typedef struct topk {
     size_t cnt, k;
     float d[SMOOTH_MAX_K];
-    uint32_t id[SMOOTH_MAX_K];  /* point index */
+    uint32_t id[SMOOTH_MAX_K];  /* point index (topk_block leaves it out) */
     uint32_t pos[SMOOTH_MAX_K]; /* sorted position */
 } topk;
 
@@ -1050,7 +1063,8 @@ typedef struct block {
      * them under -ftrapping-math). */
     int32_t d[BLOCK_CAP + 8];  /* padded with +infinity */
     int32_t cd[BLOCK_CAP + 8]; /* those of the candidates, padded */
-    uint32_t rank[BLOCK_CAP + 8]; /* candidates before each */
+    int16_t cq[BLOCK_CAP + 8];   /* the same, quantised to 16 bits */
+    int16_t rank[BLOCK_CAP + 8]; /* candidates before each */
     uint32_t cj[BLOCK_CAP];  /* candidates' block slots */
     uint64_t sel[BLOCK_CAP]; /* candidates sorted as (distance, slot) */
 } block;
@@ -1079,6 +1093,24 @@ static inline size_t count_below(const int32_t *d, size_t m, int32_t thr)
     return (size_t)c[0] + c[1] + c[2] + c[3] + c[4] + c[5] + c[6] + c[7];
 }
 
+/* Block slots whose distance bits are <= tb, into b->cj; returns their
+ * number. Eight at a time: groups with none below (whole cells away from
+ * the query) are skipped; within a group, branch-free (always store,
+ * advance when it passes). */
+static inline size_t block_select(block *b, size_t m, int32_t tb)
+{
+    size_t ns = 0;
+    for (size_t j0 = 0; j0 < m; j0 += 8) {
+        if (count_below(b->d + j0, 8, tb) == 0)
+            continue;
+        for (size_t j = j0; j < j0 + 8; j++) {
+            b->cj[ns] = (uint32_t)j;
+            ns += b->d[j] <= tb;
+        }
+    }
+    return ns;
+}
+
 /* The k nearest of the block within r2max. A threshold that admits a
  * little more than k candidates (from the previous query's k-th distance,
  * *guess) picks a few; they are sorted as 64-bit keys (distance bits, which
@@ -1101,31 +1133,24 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
     /* A threshold that admits at least k (or all within the cut-off) and,
      * for the sort below, not many more. */
     size_t ns;
+    bool shrunk = false;
     for (;;) {
-        ns = count_below(b->d, m, (int32_t)float_bits(thr));
-        if (ns >= t->k || thr >= r2max)
-            break;
-        thr = thr * 1.15f < r2max ? thr * 1.15f : r2max;
-    }
-    while (ns > 2 * t->k + 16) {
-        float half = 0.5f * thr;
-        size_t nh = count_below(b->d, m, (int32_t)float_bits(half));
-        if (nh < t->k)
-            break;
-        thr = half, ns = nh;
-    }
-    /* Compaction, eight at a time: groups with none below the threshold
-     * (whole cells away from the query) are skipped; within a group,
-     * branch-free (always store, advance when it passes). */
-    const int32_t tb = (int32_t)float_bits(thr);
-    ns = 0;
-    for (size_t j0 = 0; j0 < m; j0 += 8) {
-        if (count_below(b->d + j0, 8, tb) == 0)
+        ns = block_select(b, m, (int32_t)float_bits(thr));
+        if (ns < t->k && thr < r2max) {
+            thr = thr * 1.15f < r2max ? thr * 1.15f : r2max;
             continue;
-        for (size_t j = j0; j < j0 + 8; j++) {
-            b->cj[ns] = (uint32_t)j;
-            ns += b->d[j] <= tb;
         }
+        if (ns > 2 * t->k + 16 && !shrunk) {
+            /* Far too many for the sort: halve while k remain. */
+            shrunk = true;
+            float half = 0.5f * thr;
+            bool smaller = false;
+            while (count_below(b->d, m, (int32_t)float_bits(half)) >= t->k)
+                thr = half, half *= 0.5f, smaller = true;
+            if (smaller)
+                continue;
+        }
+        break;
     }
     /* Sort by rank: candidate i goes to the number of candidates before it
      * in (distance, slot) order. Quadratic, but branch-free and vectorised,
@@ -1135,16 +1160,37 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
         b->cd[i] = b->d[b->cj[i]];
     for (size_t i = ns; i < np; i++)
         b->cd[i] = inf_bits;
+    /* The ranks are counted on 16-bit quantised distances (monotonic, so
+     * they order as the distances except within a quantum): eight to a
+     * vector instead of four. Candidates that share a quantum share a rank,
+     * which sends the rare query with such a pair (or an exact tie) to the
+     * exact count below. */
+    const float scale = 65000.0f / thr;
+    for (size_t i = 0; i < np; i++) {
+        float d;
+        memcpy(&d, &b->cd[i], sizeof d);
+        float qv = d * scale;
+        b->cq[i] = (int16_t)((int32_t)(qv < 65000.0f ? qv : 65535.0f) - 32768);
+    }
     memset(b->sel, 0xff, ns * sizeof *b->sel); /* no key: NaN distance bits */
     memset(b->rank, 0, np * sizeof *b->rank);
-    for (size_t j = 0; j < ns; j++) {
-        const int32_t dj = b->cd[j];
+    size_t jr = 0;
+    for (; jr + 4 <= ns; jr += 4) { /* four at a time: fewer loads and stores */
+        const int16_t q0 = b->cq[jr], q1 = b->cq[jr + 1], q2 = b->cq[jr + 2];
+        const int16_t q3 = b->cq[jr + 3];
+        for (size_t i = 0; i < np; i++) {
+            int16_t c = b->cq[i];
+            b->rank[i] = (int16_t)(b->rank[i] + (q0 < c) + (q1 < c) + (q2 < c) + (q3 < c));
+        }
+    }
+    for (; jr < ns; jr++) {
+        const int16_t qj = b->cq[jr];
         for (size_t i = 0; i < np; i++)
-            b->rank[i] += (uint32_t)(dj < b->cd[i]);
+            b->rank[i] = (int16_t)(b->rank[i] + (qj < b->cq[i]));
     }
     bool tie = false;
     for (size_t i = 0; i < ns; i++) {
-        uint32_t r = b->rank[i];
+        uint32_t r = (uint32_t)b->rank[i];
         tie |= b->sel[r] != UINT64_MAX;
         b->sel[r] = (uint64_t)(uint32_t)b->cd[i] << 32 | b->cj[i];
     }
@@ -1187,19 +1233,18 @@ static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, fl
     for (size_t i = 0; i < keep; i++) {
         uint32_t j = (uint32_t)b->sel[i], bits = (uint32_t)(b->sel[i] >> 32);
         t->pos[i] = b->pos[j];
-        t->id[i] = g->perm[b->pos[j]];
         memcpy(&t->d[i], &bits, sizeof(float));
     }
     t->cnt = keep;
     /* Next query: a little above this k-th distance. */
     if (keep > 0)
-        *guess = t->d[keep - 1] * 1.05f;
+        *guess = t->d[keep - 1] * 1.12f;
 }
 
 /* ---- smoothing passes ---- */
 
 /* Points per progress report / cancellation check (at least). */
-#define SMOOTH_CHUNK ((size_t)1 << 16)
+#define SMOOTH_CHUNK ((size_t)1 << 18)
 
 /* One smoothing run. Everything is indexed by sorted position (the grid's
  * order: points of a cell side by side, cells in Morton order), so that
@@ -1270,6 +1315,7 @@ static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pas
         const float *q = g->sxyz + 3 * (size_t)s;
         t.cnt = 0;
         t.k = f->k;
+        bool ids = !blocked; /* t.id filled (the block leaves it) */
         if (blocked)
             topk_block(&t, b, g, q, r2max, &guess);
         else
@@ -1294,6 +1340,11 @@ static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pas
             double need = t.cnt < t.k ? f->rmax : fmin(sqrt((double)t.d[t.cnt - 1]), f->rmax);
             if (need < cover * slack)
                 break;
+            if (!ids) { /* the ring's candidates compare by point index too */
+                for (size_t j = 0; j < t.cnt; j++)
+                    t.id[j] = g->perm[t.pos[j]];
+                ids = true;
+            }
             topk_ring(&t, g, q, cc, ring + 1, r2max);
         }
         uint32_t *nb = x->nb + (size_t)s * f->k;
@@ -1404,14 +1455,14 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
      * density (a surface crosses cells of side c with about 2/3 c^2 of its
      * area each), hence that distance. */
     double cell = fmin(3.0 * h * sqrt((double)p.k / 24.0), f_first.rmax);
-    st = grid_build(&g, cloud->xyz, n, cell);
+    st = grid_build(&g, cloud->xyz, n, cell, threads);
     if (st == TESSEL_OK) {
         double m = (double)n / (double)g.ncell;
         double rk = g.c * sqrt((double)p.k * (2.0 / 3.0) / (3.141592653589793 * m));
         rk = fmin(1.3 * rk, f_first.rmax);
         if (fabs(rk - g.c) > 0.15 * g.c) {
             grid_free(&g);
-            st = grid_build(&g, cloud->xyz, n, rk);
+            st = grid_build(&g, cloud->xyz, n, rk, threads);
         }
     }
     if (st != TESSEL_OK)
@@ -1502,6 +1553,10 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     }
     {
         int a = (int)((p.passes - 1) & 1);
+        /* perm is a permutation: every thread writes its own slots. */
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(threads) schedule(static)
+#endif
         for (size_t s = 0; s < n; s++) {
             size_t i = g.perm[s];
             memcpy(res.xyz + 3 * i, buf[a] + 3 * s, 3 * sizeof(float));
