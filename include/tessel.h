@@ -815,28 +815,32 @@ TESSEL_API tessel_status tessel_reconstruct_fixed_plane_mesh(
  *   h_q = n.(q - p - t n), rho(x) = 1 - exp(-x^2 / (2 sigma_rho^2)),
  *   w(x) = exp(-x^2 / (2 sigma_w^2)),
  * found by iteratively reweighted least squares (weighted PCA for n,
- * weighted mean height for t) from the Gaussian-weighted PCA plane. The
+ * weighted mean height for t) from the Gaussian-weighted PCA plane. Beyond
+ * the paper (quadric = 1, the default): p is then lifted from the plane by
+ * the height of a quadric fitted over it with the same weights. The
  * neighbours of p are its k nearest cloud points within 3 sigma_w (farther
  * ones would weigh less than 1.1%), p itself included when it is a cloud
  * point. */
 typedef struct tessel_smooth_params {
-    uint32_t k;               /* at most this many neighbours; default 24
+    uint32_t k;               /* at most this many neighbours; default 30
                                  (3..256) */
     double sigma_rho;         /* scale of the robust error norm, multiple of
                                  the spacing h: heights beyond ~2 sigma_rho
                                  count as outliers; default 2 (> 0; the
                                  paper uses 1-2.5) */
     double sigma_w;           /* scale of the Gaussian distance weight,
-                                 multiple of h; default 2.5 (> 0; the paper
+                                 multiple of h; default 3 (> 0; the paper
                                  uses 1.5-3) */
     uint32_t passes;          /* smoothing passes, each on the previous
-                                 pass's output; default 2 (1..100; ignored
-                                 by projections) */
+                                 pass's output (a pass after the first
+                                 takes one IRLS step from the previous
+                                 pass's normal); default 2 (1..100;
+                                 ignored by projections) */
     uint32_t max_iterations;  /* IRLS iteration cap per point; default 20
                                  (1..1000) */
     double tolerance;         /* IRLS stops when the plane's offset moves
                                  less than tolerance*h and its normal turns
-                                 less than tolerance radians; default 1e-3
+                                 less than tolerance radians; default 1e-2
                                  (> 0) */
     uint32_t min_neighbors;   /* a fit needs at least this many neighbours
                                  (the point itself included); with fewer
@@ -850,7 +854,8 @@ typedef struct tessel_smooth_params {
                                  lifted from the robust plane onto a
                                  weighted quadric height field fitted over
                                  it (less shrinkage on curved parts);
-                                 0: the paper's plane */
+                                 0: the paper's plane; other values are
+                                 invalid */
     double sigma_rho_later;   /* sigma_rho of the passes after the first,
                                  multiple of h: the first pass has removed
                                  most of the noise, so a tighter norm

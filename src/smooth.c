@@ -102,7 +102,12 @@ static tessel_status check_params(const tessel_smooth_params *p)
     return TESSEL_OK;
 }
 
-/* Ridge penalty of the quadric's curvature terms (see quadric_height). */
+/* Ridge penalty of the quadric's curvature terms in a first pass and the
+ * projector (see frame_height), which see the full noise: measured on the
+ * noisy scans of docs/smooth.md, it lowers the error on flat parts more
+ * than it costs on curved ones. It also halves the quadric's correction
+ * on clean curved data. Later passes, whose input is already smooth, fit
+ * the quadric without it. */
 #define QUAD_RIDGE 10.0
 
 static void ctl_setup(fit_ctl *f, const tessel_smooth_params *p, double h, double sigma_rho)
@@ -442,8 +447,8 @@ static bool frame_plane(const frame_sums *fs, double inv_h, double n2[3], double
 
 /* The quadric's height f above the plane at the query's foot point. The
  * curvature terms carry a ridge penalty of `ridge` times the total weight
- * (in h units): it keeps noisy flat neighbourhoods near the plane. False
- * when the system is singular. */
+ * (u, v in h), a prior that keeps noisy flat neighbourhoods near the
+ * plane. False when the system is singular. */
 static bool frame_height(const frame_sums *fs, double ridge, double *f)
 {
     /* Unknowns (a, b, c, d, e, f); moment indices: 1, u, v, uu, uv, vv,
@@ -455,9 +460,11 @@ static bool frame_height(const frame_sums *fs, double ridge, double *f)
         {S[7], S[8], S[9], S[4], S[5], S[2]},    {S[3], S[4], S[5], S[1], S[2], S[0]},
     };
     double r[6] = {S[18], S[19], S[20], S[16], S[17], S[15]}, x[6];
+    if (!(W > 1e-30))
+        return false;
     for (int i = 0; i < 3; i++)
         M[i][i] += ridge * W;
-    if (!(W > 1e-30) || !solve6(M, r, x))
+    if (!solve6(M, r, x))
         return false;
     *f = x[5];
     return true;
@@ -1412,7 +1419,7 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     fit_ctl f_first, f_later;
     ctl_setup(&f_first, &p, h, p.sigma_rho);
     ctl_setup(&f_later, &p, h, p.sigma_rho_later);
-    f_later.ridge = 0.0;
+    f_later.ridge = 0.0; /* see QUAD_RIDGE */
 
     const size_t n = cloud->count;
     cell_grid g;

@@ -490,6 +490,161 @@ static void test_pass_matches_projector(void)
     tessel_cloud_free(&c);
 }
 
+/* Beyond the paper: the quadric over the robust plane. On a clean sphere
+ * the plane operator pulls every point inward by about r^2 / 2R (r the
+ * neighbourhood's radius); the projector's quadric follows the curvature
+ * (damped by its ridge penalty, which halves the correction), and a later
+ * pass fits it without the penalty. With noise, smoothing with the quadric
+ * shrinks the sphere much less than the plane does. */
+static void test_quadric(void)
+{
+    rng_state = 10;
+    tessel_cloud clean, noisy, a, b;
+    make_sphere(&clean, 20000, 0.0);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    tessel_projector *pq = NULL, *pp = NULL;
+    CHECK(tessel_projector_create(&pq, &clean, &p) == TESSEL_OK);
+    p.quadric = 0;
+    CHECK(tessel_projector_create(&pp, &clean, &p) == TESSEL_OK);
+    double eq = 0, ep = 0;
+    size_t tilted = 0;
+    for (size_t i = 0; i < clean.count; i += 7) {
+        float oq[3], op[3], nq[3];
+        CHECK(tessel_project(pq, clean.xyz + 3 * i, oq, nq, NULL) == TESSEL_OK);
+        CHECK(tessel_project(pp, clean.xyz + 3 * i, op, NULL, NULL) == TESSEL_OK);
+        double rq = sqrt((double)oq[0] * oq[0] + (double)oq[1] * oq[1] + (double)oq[2] * oq[2]);
+        double rp = sqrt((double)op[0] * op[0] + (double)op[1] * op[1] + (double)op[2] * op[2]);
+        eq = fmax(eq, fabs(rq - 1.0));
+        ep = fmax(ep, fabs(rp - 1.0));
+        tilted += fabs(oq[0] * nq[0] + oq[1] * nq[1] + oq[2] * nq[2]) / rq < 0.999;
+    }
+    CHECK_MSG(tilted == 0, "%zu normals not radial", tilted);
+    double h = tessel_projector_spacing(pq);
+    CHECK_MSG(ep > 0.02 * h, "plane error only %g h", ep / h);
+    CHECK_MSG(eq < 0.75 * ep, "quadric error %g h, plane %g h", eq / h, ep / h);
+    /* A second pass (no penalty) adds almost nothing to the first one's
+     * error, where a second plane pass adds as much again. */
+    double e1[2], e2[2];
+    for (int q = 0; q < 2; q++) {
+        p = tessel_smooth_params_default();
+        p.quadric = q;
+        p.spacing = h;
+        for (uint32_t passes = 1; passes <= 2; passes++) {
+            p.passes = passes;
+            CHECK(tessel_smooth(&clean, &a, &p, NULL, NULL) == TESSEL_OK);
+            (passes == 1 ? e1 : e2)[q] = rms_sphere(&a);
+            tessel_cloud_free(&a);
+        }
+    }
+    CHECK_MSG(e2[0] > 1.7 * e1[0], "plane: %g h after one pass, %g h after two", e1[0] / h,
+              e2[0] / h);
+    CHECK_MSG(e2[1] < e1[1] + 0.1 * (e2[0] - e1[0]),
+              "quadric: %g h after one pass, %g h after two", e1[1] / h, e2[1] / h);
+    tessel_projector_destroy(pq);
+    tessel_projector_destroy(pp);
+
+    make_sphere(&noisy, 20000, 0.0125);
+    p = tessel_smooth_params_default();
+    CHECK(tessel_smooth(&noisy, &a, &p, NULL, NULL) == TESSEL_OK);
+    p.quadric = 0;
+    CHECK(tessel_smooth(&noisy, &b, &p, NULL, NULL) == TESSEL_OK);
+    double ma = 0, mb = 0;
+    for (size_t i = 0; i < noisy.count; i++) {
+        const float *u = a.xyz + 3 * i, *v = b.xyz + 3 * i;
+        ma += sqrt((double)u[0] * u[0] + (double)u[1] * u[1] + (double)u[2] * u[2]) - 1.0;
+        mb += sqrt((double)v[0] * v[0] + (double)v[1] * v[1] + (double)v[2] * v[2]) - 1.0;
+    }
+    ma /= (double)noisy.count, mb /= (double)noisy.count;
+    CHECK_MSG(mb < -0.1 * h, "plane shrinks by only %g h", -mb / h);
+    CHECK_MSG(fabs(ma) < 0.5 * fabs(mb), "mean radius error %g h (plane %g h)", ma / h,
+              mb / h);
+    CHECK(rms_sphere(&a) < rms_sphere(&b));
+    tessel_cloud_free(&a);
+    tessel_cloud_free(&b);
+    tessel_cloud_free(&noisy);
+    tessel_cloud_free(&clean);
+}
+
+/* A regular lattice has many neighbours at exactly equal distances: the
+ * pass's sort (by quantised rank, exact order where two share a rank) must
+ * still pick and order them as the kd-tree does (ties by point index). */
+static void test_lattice_ties(void)
+{
+    const size_t side = 70;
+    tessel_cloud c, out;
+    CHECK(tessel_cloud_alloc(&c, side * side, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < side; i++)
+        for (size_t j = 0; j < side; j++) {
+            float *q = c.xyz + 3 * (i * side + j);
+            q[0] = (float)i, q[1] = (float)j;
+            q[2] = (float)(0.3 * sin(0.2 * (double)i) * cos(0.15 * (double)j));
+        }
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.spacing = 1.0;
+    p.passes = 1;
+    for (int q = 0; q < 2; q++) {
+        p.quadric = q;
+        CHECK(tessel_smooth(&c, &out, &p, NULL, NULL) == TESSEL_OK);
+        tessel_projector *pr = NULL;
+        CHECK(tessel_projector_create(&pr, &c, &p) == TESSEL_OK);
+        size_t diff = 0;
+        for (size_t i = 0; i < c.count; i++) {
+            float o[3], nn[3];
+            CHECK(tessel_project(pr, c.xyz + 3 * i, o, nn, NULL) == TESSEL_OK);
+            diff += memcmp(o, out.xyz + 3 * i, sizeof o) != 0 ||
+                    memcmp(nn, out.normals + 3 * i, sizeof nn) != 0;
+        }
+        CHECK_MSG(diff == 0, "quadric %d: %zu of %zu points differ", q, diff, c.count);
+        tessel_projector_destroy(pr);
+        tessel_cloud_free(&out);
+    }
+    tessel_cloud_free(&c);
+}
+
+/* Later passes reuse the first pass's neighbours and start from its
+ * normals: still the same bits for any thread count, with and without
+ * input normals, and the same for the plane operator. */
+static void test_later_passes(void)
+{
+    rng_state = 11;
+    tessel_cloud in, o1, o2;
+    make_sphere(&in, 6000, 0.02);
+    for (int variant = 0; variant < 3; variant++) {
+        tessel_smooth_params p = tessel_smooth_params_default();
+        p.passes = 4;
+        p.quadric = variant != 2;
+        if (variant == 1) {
+            in.normals = malloc(3 * in.count * sizeof(float));
+            for (size_t i = 0; i < in.count; i++)
+                for (int d = 0; d < 3; d++)
+                    in.normals[3 * i + d] = in.xyz[3 * i + d];
+        }
+        p.threads = 1;
+        CHECK(tessel_smooth(&in, &o1, &p, NULL, NULL) == TESSEL_OK);
+        p.threads = 2;
+        CHECK(tessel_smooth(&in, &o2, &p, NULL, NULL) == TESSEL_OK);
+        size_t bytes = in.count * 3 * sizeof(float);
+        CHECK_MSG(memcmp(o1.xyz, o2.xyz, bytes) == 0 && memcmp(o1.normals, o2.normals, bytes) == 0,
+                  "variant %d differs between 1 and 2 threads", variant);
+        /* More passes keep smoothing; the quadric does not shrink the
+         * sphere away. */
+        double r = rms_sphere(&o1), r0 = rms_sphere(&in);
+        CHECK_MSG(r < (variant == 2 ? 1.0 : 0.5) * r0, "variant %d: rms %g after 4 passes, %g before",
+                  variant, r, r0);
+        if (variant == 1) {
+            size_t inward = 0;
+            for (size_t i = 0; i < in.count; i++) {
+                const float *q = o1.xyz + 3 * i, *nn = o1.normals + 3 * i;
+                inward += q[0] * nn[0] + q[1] * nn[1] + q[2] * nn[2] < 0;
+            }
+            CHECK_MSG(inward == 0, "%zu normals flipped after 4 passes", inward);
+        }
+        tessel_cloud_free(&o1);
+        tessel_cloud_free(&o2);
+    }
+    tessel_cloud_free(&in);
+}
+
 /* Collinear points have no plane: every point is unfit and stays. */
 static void test_degenerate(void)
 {
@@ -518,8 +673,8 @@ static void test_args(void)
     tessel_cloud c, out;
     rng_state = 7;
     make_plane(&c, 10, 0.0);
-    tessel_smooth_params bad[8];
-    for (int i = 0; i < 8; i++)
+    tessel_smooth_params bad[11];
+    for (int i = 0; i < 11; i++)
         bad[i] = tessel_smooth_params_default();
     bad[0].k = 2;
     bad[1].k = 1000;
@@ -529,7 +684,10 @@ static void test_args(void)
     bad[5].tolerance = -1;
     bad[6].min_neighbors = bad[6].k + 1; /* > k */
     bad[7].spacing = -1;
-    for (int i = 0; i < 8; i++)
+    bad[8].quadric = 2;
+    bad[9].sigma_rho_later = 0;
+    bad[10].sigma_rho_later = INFINITY;
+    for (int i = 0; i < 11; i++)
         CHECK_MSG(tessel_smooth(&c, &out, &bad[i], NULL, NULL) == TESSEL_ERR_INVALID_ARG,
                   "bad params %d accepted", i);
     CHECK(tessel_smooth(NULL, &out, NULL, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
@@ -576,6 +734,9 @@ int main(void)
     test_threads_and_order();
     test_projector();
     test_pass_matches_projector();
+    test_quadric();
+    test_lattice_ties();
+    test_later_passes();
     test_degenerate();
     test_args();
     test_cancel();

@@ -9,18 +9,21 @@
 
 static const char smooth_help[] =
     "usage: tessel smooth IN OUT [options]\n\n"
-    "Moves every point onto a robust local plane fit of its neighbours\n"
-    "(Mederos, Velho & de Figueiredo 2003): noise goes, outliers do not pull.\n"
-    "OUT gets the smoothed points with the fitted normals. Lengths are\n"
-    "multiples of the mean point spacing h, estimated from IN.\n\n"
+    "Moves every point onto a robust local fit of its neighbours (Mederos,\n"
+    "Velho & de Figueiredo 2003, plus a quadric over their robust plane): noise\n"
+    "goes, outliers do not pull. OUT gets the smoothed points with the fitted\n"
+    "normals. Lengths are multiples of the mean point spacing h, estimated\n"
+    "from IN.\n\n"
     "Options:\n"
     "  --passes N          smoothing passes (default 2)\n"
-    "  --k N               neighbours per point, 3..256 (default 24)\n"
+    "  --k N               neighbours per point, 3..256 (default 30)\n"
     "  --sigma-rho X       robust scale in h: heights beyond ~2x count as\n"
     "                      outliers (default 2)\n"
-    "  --sigma-w X         Gaussian distance weight scale in h (default 2.5)\n"
+    "  --sigma-rho-later X robust scale of the passes after the first (default 1)\n"
+    "  --sigma-w X         Gaussian distance weight scale in h (default 3)\n"
+    "  --plane             the paper's plane operator, no quadric\n"
     "  --iterations N      iteration cap of each fit (default 20)\n"
-    "  --tolerance X       fit convergence, in h and radians (default 1e-3)\n"
+    "  --tolerance X       fit convergence, in h and radians (default 1e-2)\n"
     "  --min-neighbors N   fewer neighbours: the point stays (default 6)\n"
     "  --spacing X         use this h (world units) instead of estimating it\n"
     "  --ascii             write ascii PLY\n\n";
@@ -101,6 +104,11 @@ static int smooth_option(void *ctx, int argc, char **argv, int *i)
     POS_OPT("--sigma-w", o->smooth.sigma_w)
     POS_OPT("--spacing", o->smooth.spacing)
     if (!o->simplify) {
+        if (strcmp(a, "--plane") == 0) {
+            o->smooth.quadric = 0;
+            return 1;
+        }
+        POS_OPT("--sigma-rho-later", o->smooth.sigma_rho_later)
         INT_OPT("--passes", 1, 100, o->smooth.passes)
         INT_OPT("--iterations", 1, 1000, o->smooth.max_iterations)
         INT_OPT("--min-neighbors", 3, 256, o->smooth.min_neighbors)
@@ -224,24 +232,27 @@ int cmd_smooth(int argc, char **argv)
     double seconds = cli_now() - t0;
     if (common.json) {
         printf("{\"points\": %zu, \"spacing\": %.9g, \"passes\": %u, \"k\": %u, "
-               "\"sigma_rho\": %g, \"sigma_w\": %g, \"unfit\": %zu, \"unconverged\": %zu, "
+               "\"sigma_rho\": %g, \"sigma_rho_later\": %g, \"sigma_w\": %g, "
+               "\"quadric\": %d, \"unfit\": %zu, \"unconverged\": %zu, "
                "\"mean_iterations\": %.3f, \"rms_displacement\": %.9g, "
                "\"max_displacement\": %.9g, \"smooth_seconds\": %.6f, \"seconds\": %.6f}\n",
-               n, st.spacing, o.smooth.passes, o.smooth.k, o.smooth.sigma_rho, o.smooth.sigma_w,
-               st.unfit, st.unconverged, st.mean_iterations, st.rms_displacement,
-               st.max_displacement, ts, seconds);
+               n, st.spacing, o.smooth.passes, o.smooth.k, o.smooth.sigma_rho,
+               o.smooth.sigma_rho_later, o.smooth.sigma_w, o.smooth.quadric, st.unfit,
+               st.unconverged, st.mean_iterations, st.rms_displacement, st.max_displacement, ts,
+               seconds);
     } else if (!common.quiet) {
         fprintf(stderr,
-                "tessel: smoothed %zu points: h = %.6g%s, %u pass%s, k = %u, sigma_rho = %g h, "
-                "sigma_w = %g h\n"
+                "tessel: smoothed %zu points: h = %.6g%s, %u pass%s, k = %u, sigma_rho = %g h "
+                "(later passes %g h), sigma_w = %g h, %s\n"
                 "tessel: %zu unfit (left in place), %.2f iterations per fit, points moved "
                 "%.3g h RMS, %.3g h at most\n"
                 "tessel: wrote %s in %.2f s (smoothing %.2f s, %.2fM points/s)\n",
                 n, st.spacing, o.smooth.spacing > 0 ? " (given)" : " (estimated)",
                 o.smooth.passes, o.smooth.passes == 1 ? "" : "es", o.smooth.k,
-                o.smooth.sigma_rho, o.smooth.sigma_w, st.unfit, st.mean_iterations,
+                o.smooth.sigma_rho, o.smooth.sigma_rho_later, o.smooth.sigma_w,
+                o.smooth.quadric ? "quadric" : "plane", st.unfit, st.mean_iterations,
                 st.rms_displacement / st.spacing, st.max_displacement / st.spacing, out,
-                seconds, ts, ts > 0 ? (double)n * o.smooth.passes / ts / 1e6 : 0.0);
+                seconds, ts, ts > 0 ? (double)n / ts / 1e6 : 0.0);
     }
     return CLI_OK;
 }
