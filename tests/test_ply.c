@@ -656,6 +656,10 @@ static void test_bad_files(void)
          "header announces 4 vertices needing 48 bytes but only 30 bytes follow", 0, 115},
         {"ply_truncated_faces.ply", 1, TESSEL_ERR_PARSE,
          "data truncated in element 'face', record 1 of 2", 0, 219},
+        /* A list element used more than its least size, so the fixed
+         * records after it no longer fit (found by fuzz_ply). */
+        {"ply_list_then_fixed.ply", 0, TESSEL_ERR_PARSE,
+         "data truncated in element 'vertex', record 2 of 3", 0, 223},
         {"ply_bad_number.ply", 0, TESSEL_ERR_PARSE, "bad number 'abc' in element 'vertex'", 9,
          -1},
         {"ply_index_out_of_range.ply", 1, TESSEL_ERR_PARSE,

@@ -631,8 +631,12 @@ static tessel_status binary_element(ply_reader *r, tsl_builder *b, const ply_ele
     const bool vertex = e == r->vertex;
     const bool faces = e->is_face && want_faces;
     double val[R_COUNT] = {0};
+    /* The header check counted lists at their least size; a list element
+     * before this one may have used more, so fixed records are checked
+     * against what is really left. */
+    if (e->fixed && e->min_bytes && e->count > (r->size - r->pos) / e->min_bytes)
+        return truncated(r, e, (r->size - r->pos) / e->min_bytes);
     if (e->fixed && !vertex) {
-        /* Skipped wholesale; the size was checked against the data. */
         r->pos += (size_t)e->count * e->min_bytes;
         return TESSEL_OK;
     }
