@@ -323,22 +323,38 @@ static void bench_speed(size_t n)
         return;
     printf("spacing estimate: h = %.5f in %.3f s\n\n", h, now() - t0);
     (void)c0;
-    printf("| stage | threads | wall s | cpu s | points/s (wall) | notes |\n");
-    printf("|---|---|---|---|---|---|\n");
+    printf("CPU us/pt: process CPU time per point (all threads, all passes); points/s on "
+           "2 idle cores = 2e6 / that (the figure to read when other jobs share the "
+           "machine).\n\n");
+    printf("| stage | threads | wall s | cpu s | points/s (wall) | CPU us/pt | points/s on 2 "
+           "cores (CPU) | notes |\n");
+    printf("|---|---|---|---|---|---|---|---|\n");
     for (int th = 1; th <= 2; th++) {
         tessel_smooth_params p = tessel_smooth_params_default();
         p.spacing = h;
         p.threads = th;
         tessel_smooth_stats st;
+        if (th == 2) { /* the paper's plane operator, same passes */
+            p.quadric = 0;
+            t0 = now(), c0 = cpu_now();
+            if (tessel_smooth(&c, &out, &p, NULL, &st) != TESSEL_OK)
+                return;
+            double w = now() - t0, cpu = cpu_now() - c0;
+            printf("| smooth, plane (k=%u, %u passes) | %d | %.3f | %.3f | %.0f | %.3f | %.0f | "
+                   "%.2f IRLS iterations |\n",
+                   p.k, p.passes, th, w, cpu, n / w, 1e6 * cpu / n, 2.0 * n / cpu,
+                   st.mean_iterations);
+            tessel_cloud_free(&out);
+            p.quadric = 1;
+        }
         t0 = now(), c0 = cpu_now();
         if (tessel_smooth(&c, &out, &p, NULL, &st) != TESSEL_OK)
             return;
         double w = now() - t0, cpu = cpu_now() - c0;
-        printf("| smooth (k=%u, %u passes) | %d | %.3f | %.3f | %.0f | %.0f point-passes/s; "
-               "%.2f IRLS "
-               "iterations, %zu unfit |\n",
-               p.k, p.passes, th, w, cpu, n / w, n * (double)p.passes / w, st.mean_iterations,
-               st.unfit);
+        printf("| smooth, quadric (k=%u, %u passes) | %d | %.3f | %.3f | %.0f | %.3f | %.0f | "
+               "%.2f IRLS iterations, %zu unfit |\n",
+               p.k, p.passes, th, w, cpu, n / w, 1e6 * cpu / n, 2.0 * n / cpu,
+               st.mean_iterations, st.unfit);
         tessel_simplify_params sp = tessel_simplify_params_default();
         sp.cluster.spacing = sp.projection.spacing = h;
         sp.cluster.threads = sp.projection.threads = th;
@@ -352,10 +368,12 @@ static void bench_speed(size_t n)
         if (tessel_representatives(&out, &cl, &sp, NULL, &reps, &ss) != TESSEL_OK)
             return;
         double w2 = now() - t0, cpu2 = cpu_now() - c0;
-        printf("| cluster | %d | %.3f | %.3f | %.0f | %zu clusters |\n", th, w1, cpu1, n / w1,
-               cl.count);
-        printf("| representatives | %d | %.3f | %.3f | %.0f | %zu points (%.1fx fewer) |\n", th,
-               w2, cpu2, n / w2, reps.count, (double)n / reps.count);
+        printf("| cluster | %d | %.3f | %.3f | %.0f | %.3f | %.0f | %zu clusters |\n", th, w1,
+               cpu1, n / w1, 1e6 * cpu1 / n, 2.0 * n / cpu1, cl.count);
+        printf("| representatives | %d | %.3f | %.3f | %.0f | %.3f | %.0f | %zu points (%.1fx "
+               "fewer) |\n",
+               th, w2, cpu2, n / w2, 1e6 * cpu2 / n, 2.0 * n / cpu2, reps.count,
+               (double)n / reps.count);
         tessel_clusters_free(&cl);
         tessel_cloud_free(&reps);
         tessel_cloud_free(&out);
@@ -430,23 +448,28 @@ static void bench_data(const char *dir, uint32_t passes)
         /* Sensitivity: 1-3 passes and sigma_rho. */
         if (f == 0) {
             printf("\n%s, smoothing parameters (RMS %% of diagonal):\n\n", names[f]);
-            printf("| sigma_rho | sigma_w | k | passes | RMS | gain "
-                   "|\n|---|---|---|---|---|---|\n");
-            static const double grid[][4] = {
-                {1.5, 2, 24, 1}, {2, 2.5, 24, 1}, {2.5, 2.5, 32, 1}, {1.5, 3, 48, 1},
-                {1, 2.5, 24, 2}, {2, 2.5, 24, 2}, {2.5, 2.5, 24, 2}, {2, 2, 24, 2},
-                {2, 3, 24, 2},   {2, 2.5, 32, 2}, {2, 2.5, 24, 3},   {2.5, 1.5, 24, 2}};
+            printf("| operator | sigma_rho | later | sigma_w | k | passes | RMS | gain "
+                   "|\n|---|---|---|---|---|---|---|---|\n");
+            /* quadric, sigma_rho, sigma_rho_later, sigma_w, k, passes */
+            static const double grid[][6] = {
+                {0, 2, 2, 2.5, 24, 2}, {0, 2, 1, 3, 30, 2},   {1, 2, 1, 3, 30, 1},
+                {1, 2, 1, 3, 24, 2},   {1, 2, 1, 3, 30, 2},   {1, 2, 2, 3, 30, 2},
+                {1, 2, 0.7, 3, 30, 2}, {1, 2, 1, 2.5, 30, 2}, {1, 2.5, 1, 3, 30, 2},
+                {1, 2, 1, 3, 32, 2},   {1, 2, 1, 3, 30, 3},   {1, 2, 1, 3, 24, 3}};
             for (size_t i = 0; i < sizeof grid / sizeof *grid; i++) {
                 tessel_cloud s2;
                 tessel_smooth_params q = tessel_smooth_params_default();
-                q.sigma_rho = grid[i][0], q.sigma_w = grid[i][1];
-                q.k = (uint32_t)grid[i][2], q.passes = (uint32_t)grid[i][3];
+                q.quadric = (int)grid[i][0];
+                q.sigma_rho = grid[i][1], q.sigma_rho_later = grid[i][2];
+                q.sigma_w = grid[i][3];
+                q.k = (uint32_t)grid[i][4], q.passes = (uint32_t)grid[i][5];
                 if (tessel_smooth(&c, &s2, &q, NULL, NULL) != TESSEL_OK)
                     return;
                 double rr, mm;
                 cloud_distance(&g, &s2, &rr, &mm);
-                printf("| %.1f | %.1f | %u | %u | %.4f | %.2fx |\n", q.sigma_rho, q.sigma_w,
-                       q.k, q.passes, 100 * rr / diag, r0 / rr);
+                printf("| %s | %.1f | %.1f | %.1f | %u | %u | %.4f | %.2fx |\n",
+                       q.quadric ? "quadric" : "plane", q.sigma_rho, q.sigma_rho_later,
+                       q.sigma_w, q.k, q.passes, 100 * rr / diag, r0 / rr);
                 tessel_cloud_free(&s2);
             }
             printf("\n%s, reduced size (smoothed cloud of %zu points):\n\n", names[f], s.count);
@@ -541,22 +564,26 @@ static void bench_cube(void)
     printf("| operator | passes | < 1 h | 1-2 h | 2-4 h | > 4 h (faces) "
            "|\n|---|---|---|---|---|---|\n");
     const double bins[] = {1, 2, 4, INFINITY};
-    for (int run = -1; run < 5; run++) {
+    for (int run = -1; run < 7; run++) {
+        tessel_smooth_params p = tessel_smooth_params_default();
         tessel_cloud s;
         const tessel_cloud *src = &c;
         const char *name = "input";
         uint32_t passes = 0;
         if (run >= 0) {
-            tessel_smooth_params p = tessel_smooth_params_default();
             passes = p.passes = run % 2 ? 2 : 1;
-            name = "robust (defaults)";
+            name = "robust quadric (defaults)";
             if (run >= 2 && run < 4) {
-                p.sigma_rho = 1e6;
-                name = "plain weighted PCA";
-            } else if (run == 4) {
+                p.quadric = 0;
+                name = "robust plane (the paper)";
+            } else if (run >= 4 && run < 6) {
+                p.quadric = 0;
+                p.sigma_rho = p.sigma_rho_later = 1e6;
+                name = "plain weighted PCA plane";
+            } else if (run == 6) {
                 p.sigma_rho = 1.0;
                 p.passes = passes = 2;
-                name = "robust, sigma_rho 1";
+                name = "robust quadric, sigma_rho 1";
             }
             if (tessel_smooth(&c, &s, &p, NULL, NULL) != TESSEL_OK)
                 return;
