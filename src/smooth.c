@@ -14,16 +14,23 @@
  * weighted covariance (weighted PCA), and t is the weighted mean height.
  * The first plane is the one with the Gaussian weights alone.
  *
+ * Beyond the paper (params.quadric, on by default): Q(p) is the foot point
+ * on the robust plane lifted by the height of a weighted least-squares
+ * quadric fitted over that plane with the same robust weights, which
+ * removes most of the plane's shrinkage on curved parts (docs/smooth.md).
+ *
  * Neighbours: the k nearest points within 3 sigma_w (beyond it w < 1.1%).
- * Arbitrary points (tessel_project) find them with the kd-tree. A smoothing
- * pass, where the queries are the cloud itself, sorts the points into a
- * grid of cells a little wider than the distance to the k-th neighbour and
- * serves all points of a cell from the same 27 cells (more rings of cells
- * for the rare point whose neighbours reach farther): the same neighbours
- * as the kd-tree, at a fraction of the cost. Every output position depends
- * only on the previous pass's positions, so points are independent: an
- * OpenMP loop over cells with per-point output slots gives the same bits
- * for any thread count. */
+ * Arbitrary points (tessel_project) find them with the kd-tree. The first
+ * smoothing pass, where the queries are the cloud itself, sorts the points
+ * into a grid of cells a little wider than the distance to the k-th
+ * neighbour and serves all points of a cell from the same 27 cells (more
+ * rings of cells for the rare point whose neighbours reach farther): the
+ * same neighbours as the kd-tree, at a fraction of the cost. Later passes
+ * reuse those neighbours at their new positions and take one more IRLS
+ * step from the previous pass's normal. Every output position depends only
+ * on the previous pass's positions, so points are independent: OpenMP
+ * loops with per-point output slots give the same bits for any thread
+ * count. */
 #include "internal.h"
 
 #include <stdlib.h>
