@@ -127,6 +127,45 @@ void cli_apply_threads(const cli_common *common)
 #endif
 }
 
+int cli_stream_reconstruction(const char *in, const char *out, const tessel_cloud *cloud,
+                              int ascii, const cli_common *common, const char *what,
+                              cli_stream_fn run, void *ctx, double *t_write)
+{
+    tessel_diag diag = {0};
+    tessel_write_params wp = tessel_write_params_default();
+    wp.ascii = ascii;
+    tessel_mesh_writer *writer = NULL;
+    tessel_status st = tessel_mesh_writer_open(&writer, out, cloud, &wp, 1, &diag);
+    if (st != TESSEL_OK) {
+        cli_error_status(st, &diag, out);
+        return cli_exit_for_write(st);
+    }
+    tessel_triangle_sink sink = tessel_mesh_writer_sink(writer);
+    cli_progress prog;
+    cli_progress_init(&prog, common);
+    tessel_callbacks cb = cli_callbacks(&prog);
+    cli_progress_items(&prog, cloud->count);
+    st = run(cloud, &cb, &sink, ctx);
+    cli_progress_done(&prog);
+    if (st != TESSEL_OK) {
+        tessel_mesh_writer_abort(writer);
+        if (st == TESSEL_ERR_IO) {
+            cli_error("%s: writing the triangles failed", out);
+            return CLI_OUTPUT_ERROR;
+        }
+        cli_error("%s: %s failed: %s", in, what, tessel_status_str(st));
+        return CLI_FAILURE;
+    }
+    double t1 = cli_now();
+    st = tessel_mesh_writer_close(writer, &diag);
+    *t_write = cli_now() - t1;
+    if (st != TESSEL_OK) {
+        cli_error_status(st, &diag, out);
+        return cli_exit_for_write(st);
+    }
+    return CLI_OK;
+}
+
 void cli_json_string(FILE *out, const char *s)
 {
     fputc('"', out);

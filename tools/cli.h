@@ -84,6 +84,18 @@ int cli_parse_in_out(int argc, char **argv, const char *help, cli_common *common
                      const char **in, const char **out, cli_extra_option_fn extra,
                      void *ctx);
 
+/* Runs a streaming reconstruction of `cloud` (read from `in`) into `out`:
+ * opens the mesh writer (compact), calls run(cloud, callbacks, sink, ctx)
+ * under a progress bar, then closes the file, or aborts it on failure so
+ * nothing partial is left. `what` names the method in errors. Returns CLI_OK
+ * or the exit code after printing the error; *t_write gets the seconds
+ * spent finishing the file. The caller keeps and frees the cloud. */
+typedef tessel_status (*cli_stream_fn)(const tessel_cloud *cloud, const tessel_callbacks *cb,
+                                       const tessel_triangle_sink *sink, void *ctx);
+int cli_stream_reconstruction(const char *in, const char *out, const tessel_cloud *cloud,
+                              int ascii, const cli_common *common, const char *what,
+                              cli_stream_fn run, void *ctx, double *t_write);
+
 /* Writes s as a JSON string literal (quoted, escaped). */
 void cli_json_string(FILE *out, const char *s);
 

@@ -97,6 +97,18 @@ static int greedy_option(void *ctx, int argc, char **argv, int *i)
     return 1;
 }
 
+typedef struct greedy_run {
+    const tessel_greedy_params *params;
+    tessel_recon_summary summary;
+} greedy_run;
+
+static tessel_status run_greedy(const tessel_cloud *cloud, const tessel_callbacks *cb,
+                                const tessel_triangle_sink *sink, void *ctx)
+{
+    greedy_run *r = ctx;
+    return tessel_reconstruct_greedy(cloud, r->params, cb, sink, &r->summary);
+}
+
 static int greedy(int argc, char **argv)
 {
     cli_common common = {0};
@@ -123,42 +135,15 @@ static int greedy(int argc, char **argv)
         tessel_cloud_free(&cloud);
         return CLI_INPUT_ERROR;
     }
-    tessel_write_params wp = tessel_write_params_default();
-    wp.ascii = o.ascii;
-    tessel_mesh_writer *writer = NULL;
-    st = tessel_mesh_writer_open(&writer, out, &cloud, &wp, 1, &diag);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, out);
-        tessel_cloud_free(&cloud);
-        return cli_exit_for_write(st);
-    }
-    tessel_triangle_sink sink = tessel_mesh_writer_sink(writer);
-    cli_progress prog;
-    cli_progress_init(&prog, &common);
-    tessel_callbacks cb = cli_callbacks(&prog);
-    cli_progress_items(&prog, cloud.count);
-    tessel_recon_summary sum;
-    st = tessel_reconstruct_greedy(&cloud, &o.p, &cb, &sink, &sum);
-    cli_progress_done(&prog);
-    if (st != TESSEL_OK) {
-        tessel_mesh_writer_abort(writer);
-        tessel_cloud_free(&cloud);
-        if (st == TESSEL_ERR_IO) {
-            cli_error("%s: writing the triangles failed", out);
-            return CLI_OUTPUT_ERROR;
-        }
-        cli_error("%s: reconstruction failed: %s", in, tessel_status_str(st));
-        return CLI_FAILURE;
-    }
-    double t1 = cli_now();
-    st = tessel_mesh_writer_close(writer, &diag);
-    double t_write = cli_now() - t1;
+    greedy_run run = {&o.p, {0}};
+    double t_write = 0;
+    int code = cli_stream_reconstruction(in, out, &cloud, o.ascii, &common, "reconstruction",
+                                         run_greedy, &run, &t_write);
     size_t n = cloud.count;
     tessel_cloud_free(&cloud);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, out);
-        return cli_exit_for_write(st);
-    }
+    if (code != CLI_OK)
+        return code;
+    const tessel_recon_summary sum = run.summary;
     double seconds = cli_now() - t0;
     double rate = sum.seconds > 0 ? (double)n / sum.seconds : 0.0;
     if (common.json) {

@@ -195,6 +195,18 @@ static const char *mode_name(tessel_fixed_plane_mode m)
                                                                                      : "grid";
 }
 
+typedef struct fixed_run {
+    const tessel_fixed_plane_params *params;
+    tessel_fixed_plane_stats stats;
+} fixed_run;
+
+static tessel_status run_fixed(const tessel_cloud *cloud, const tessel_callbacks *cb,
+                               const tessel_triangle_sink *sink, void *ctx)
+{
+    fixed_run *r = ctx;
+    return tessel_reconstruct_fixed_plane(cloud, r->params, cb, sink, &r->stats);
+}
+
 int cmd_reconstruct_fixed(int argc, char **argv)
 {
     cli_common common = {0};
@@ -243,43 +255,17 @@ int cmd_reconstruct_fixed(int argc, char **argv)
         return CLI_USAGE;
     }
 
-    tessel_write_params wp = tessel_write_params_default();
-    wp.ascii = o.ascii;
-    tessel_mesh_writer *writer = NULL;
-    st = tessel_mesh_writer_open(&writer, out, &cloud, &wp, 1, &diag);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, out);
-        tessel_cloud_free(&cloud);
-        return cli_exit_for_write(st);
-    }
-    tessel_triangle_sink sink = tessel_mesh_writer_sink(writer);
-    cli_progress prog;
-    cli_progress_init(&prog, &common);
-    tessel_callbacks cb = cli_callbacks(&prog);
-    cli_progress_items(&prog, cloud.count);
-    tessel_fixed_plane_stats fs;
-    st = tessel_reconstruct_fixed_plane(&cloud, &o.p, &cb, &sink, &fs);
-    cli_progress_done(&prog);
-    if (st != TESSEL_OK) {
-        tessel_mesh_writer_abort(writer);
-        tessel_cloud_free(&cloud);
-        if (st == TESSEL_ERR_IO) {
-            cli_error("%s: writing the triangles failed", out);
-            return CLI_OUTPUT_ERROR;
-        }
-        cli_error("%s: fixed-plane reconstruction failed: %s", in, tessel_status_str(st));
-        return CLI_FAILURE;
-    }
-    double t1 = cli_now();
-    st = tessel_mesh_writer_close(writer, &diag);
-    double t_write = cli_now() - t1;
+    fixed_run run = {&o.p, {0}};
+    double t_write = 0;
+    int code = cli_stream_reconstruction(in, out, &cloud, o.ascii, &common,
+                                         "fixed-plane reconstruction", run_fixed, &run,
+                                         &t_write);
     size_t n = cloud.count;
     int offset = cloud.offset[0] != 0 || cloud.offset[1] != 0 || cloud.offset[2] != 0;
     tessel_cloud_free(&cloud);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, out);
-        return cli_exit_for_write(st);
-    }
+    if (code != CLI_OK)
+        return code;
+    const tessel_fixed_plane_stats fs = run.stats;
     double seconds = cli_now() - t0;
     const double deg = 180.0 / 3.14159265358979323846;
     double cu = fs.mode == TESSEL_FIXED_PLANE_RANGE ? fs.cell[0] * deg : fs.cell[0];
