@@ -60,6 +60,7 @@ typedef struct rf {
     size_t nv, cap_v;
     uint32_t *tri;  /* 3 per triangle */
     uint32_t *twin; /* per half-edge 3t+i (tri[3t+i] -> tri[3t+(i+1)%3]) */
+    float *box;     /* per triangle: lo[3], hi[3] of its current corners */
     size_t nt, cap_t;
     edge_map edges;
     tsl_trigrid grid;
@@ -216,11 +217,43 @@ static void tri_box(const rf *r, uint32_t t, double lo[3], double hi[3])
     }
 }
 
+/* Records triangle t's box and lists it in the grid at its place. */
 static tessel_status grid_add(rf *r, uint32_t t)
 {
     double lo[3], hi[3];
     tri_box(r, t, lo, hi);
+    float *b = r->box + 6 * (size_t)t;
+    for (int c = 0; c < 3; c++) {
+        b[c] = (float)lo[c]; /* exact: the corners are floats */
+        b[3 + c] = (float)hi[c];
+    }
     return tsl_trigrid_insert(&r->grid, t, lo, hi);
+}
+
+/* Whether every point q[0 .. count) lies strictly on one side of the plane
+ * through o with normal n = e1 x e2 (e1, e2: two edges from o, squared
+ * lengths given), with certainty: the plane test in double carries a
+ * rounding error far below 1e-12 |e1| |e2| |q - o| when the inputs are
+ * floats, so a larger value has the sign of the exact one. Lets most pairs
+ * of neighbouring triangles skip the exact test (whose answer "apart" it
+ * then gives: a triangle whose vertices off the other's shared ones lie
+ * strictly on one side of the other's plane meets it at most in those). */
+static bool clearly_one_side(const double o[3], const double n[3], double k2,
+                             const double *q[3], int count)
+{
+    int side = 0;
+    for (int j = 0; j < count; j++) {
+        double d[3];
+        tsl_sub(q[j], o, d);
+        double s = tsl_dot(n, d);
+        if (!(s * s > k2 * tsl_dot(d, d)))
+            return false;
+        int sj = s > 0.0 ? 1 : -1;
+        if (side && sj != side)
+            return false;
+        side = sj;
+    }
+    return true;
 }
 
 /* A triangle being checked: ids, coordinates, box, bounding sphere. */
@@ -228,7 +261,43 @@ typedef struct new_tri {
     const uint32_t *v;
     double p[3][3];
     double lo[3], hi[3], centroid[3], radius;
+    double n[3], k2; /* e1 x e2 and the certainty bound of clearly_one_side */
 } new_tri;
+
+/* Fills n and k2 (see clearly_one_side) for the triangle p. */
+static void plane_of(const double p[3][3], double n[3], double *k2)
+{
+    double e1[3], e2[3];
+    tsl_sub(p[1], p[0], e1);
+    tsl_sub(p[2], p[0], e2);
+    tsl_cross(e1, e2, n);
+    *k2 = 1e-24 * tsl_dot(e1, e1) * tsl_dot(e2, e2);
+}
+
+/* Exact intersection test of a new triangle x with e (vertex ids ev,
+ * corners pe), behind the certain plane filters. */
+static bool meets(const new_tri *x, const uint32_t ev[3], const double pe[3][3])
+{
+    const double *qe[3], *qx[3];
+    int ne = 0, nx = 0;
+    for (int j = 0; j < 3; j++) {
+        if (ev[j] != x->v[0] && ev[j] != x->v[1] && ev[j] != x->v[2])
+            qe[ne++] = pe[j];
+        if (x->v[j] != ev[0] && x->v[j] != ev[1] && x->v[j] != ev[2])
+            qx[nx++] = x->p[j];
+    }
+    if (ne == 0)
+        return true; /* the same three vertices */
+    if (clearly_one_side(x->p[0], x->n, x->k2, qe, ne))
+        return false;
+    double n[3], k2;
+    plane_of(pe, n, &k2);
+    if (clearly_one_side(pe[0], n, k2, qx, nx))
+        return false;
+    const double *pp[3] = {x->p[0], x->p[1], x->p[2]};
+    const double *pq[3] = {pe[0], pe[1], pe[2]};
+    return tsl_triangles_intersect(x->v, pp, ev, pq);
+}
 
 /* The count triangles news[] of one operation (already written into the
  * mesh) each keep to their predecessor's unit normal old_n[q], are not
@@ -244,19 +313,20 @@ static tessel_status check_news(rf *r, const uint32_t *news, int count,
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int q = 0; q < count; q++) {
         new_tri *x = &nt[q];
-        double n[3];
-        tri_cross(r, news[q], n);
-        if (!tsl_normalize(n) || tsl_dot(n, old_n[q]) < r->cos_turn)
-            return TESSEL_OK;
         x->v = r->tri + 3 * (size_t)news[q];
         for (int i = 0; i < 3; i++)
             vtx(r, x->v[i], x->p[i]);
+        plane_of(x->p, x->n, &x->k2);
+        double n[3] = {x->n[0], x->n[1], x->n[2]};
+        if (!tsl_normalize(n) || tsl_dot(n, old_n[q]) < r->cos_turn)
+            return TESSEL_OK;
         const double *pp[3] = {x->p[0], x->p[1], x->p[2]};
         if (tsl_triangle_degenerate(pp))
             return TESSEL_OK;
-        tri_box(r, news[q], x->lo, x->hi);
         x->radius = 0.0;
         for (int c = 0; c < 3; c++) {
+            x->lo[c] = fmin(x->p[0][c], fmin(x->p[1][c], x->p[2][c]));
+            x->hi[c] = fmax(x->p[0][c], fmax(x->p[1][c], x->p[2][c]));
             x->centroid[c] = (x->p[0][c] + x->p[1][c] + x->p[2][c]) / 3.0;
             lo[c] = x->lo[c] < lo[c] ? x->lo[c] : lo[c];
             hi[c] = x->hi[c] > hi[c] ? x->hi[c] : hi[c];
@@ -269,12 +339,9 @@ static tessel_status check_news(rf *r, const uint32_t *news, int count,
         }
     }
     for (int a = 0; a < count; a++)
-        for (int b = a + 1; b < count; b++) {
-            const double *pa[3] = {nt[a].p[0], nt[a].p[1], nt[a].p[2]};
-            const double *pb[3] = {nt[b].p[0], nt[b].p[1], nt[b].p[2]};
-            if (tsl_triangles_intersect(nt[a].v, pa, nt[b].v, pb))
+        for (int b = a + 1; b < count; b++)
+            if (meets(&nt[a], nt[b].v, (const double(*)[3])nt[b].p))
                 return TESSEL_OK;
-        }
     tessel_status st = tsl_trigrid_query(&r->grid, lo, hi);
     if (st)
         return st;
@@ -282,35 +349,24 @@ static tessel_status check_news(rf *r, const uint32_t *news, int count,
         uint32_t e = r->grid.found[i];
         if (e >= r->nt)
             continue;
+        /* The box of e where it is now (the grid may list it elsewhere). */
+        const float *eb = r->box + 6 * (size_t)e;
+        if (eb[3] < lo[0] || eb[0] > hi[0] || eb[4] < lo[1] || eb[1] > hi[1] ||
+            eb[5] < lo[2] || eb[2] > hi[2])
+            continue;
         bool is_new = false;
         for (int q = 0; q < count; q++)
             is_new |= news[q] == e;
         if (is_new)
             continue;
         const uint32_t *ev = r->tri + 3 * (size_t)e;
-        double p[3][3], elo[3], ehi[3], ce[3], re2 = 0.0;
+        double p[3][3], ce[3] = {0.0, 0.0, 0.0}, re = -1.0;
         for (int j = 0; j < 3; j++)
             vtx(r, ev[j], p[j]);
-        for (int c = 0; c < 3; c++) {
-            elo[c] = p[0][c] < p[1][c] ? p[0][c] : p[1][c];
-            elo[c] = p[2][c] < elo[c] ? p[2][c] : elo[c];
-            ehi[c] = p[0][c] > p[1][c] ? p[0][c] : p[1][c];
-            ehi[c] = p[2][c] > ehi[c] ? p[2][c] : ehi[c];
-            ce[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
-        }
-        for (int j = 0; j < 3; j++) {
-            double d[3];
-            tsl_sub(p[j], ce, d);
-            double l = tsl_dot(d, d);
-            re2 = l > re2 ? l : re2;
-        }
-        const double *pe[3] = {p[0], p[1], p[2]};
         for (int q = 0; q < count; q++) {
             const new_tri *x = &nt[q];
-            bool apart = false;
-            for (int c = 0; c < 3 && !apart; c++)
-                apart = ehi[c] < x->lo[c] || elo[c] > x->hi[c];
-            if (apart)
+            if (eb[3] < x->lo[0] || eb[0] > x->hi[0] || eb[4] < x->lo[1] ||
+                eb[1] > x->hi[1] || eb[5] < x->lo[2] || eb[2] > x->hi[2])
                 continue;
             const uint32_t *tv = x->v;
             bool shares = false;
@@ -318,14 +374,25 @@ static tessel_status check_news(rf *r, const uint32_t *news, int count,
                 shares |= tv[a] == ev[0] || tv[a] == ev[1] || tv[a] == ev[2];
             if (!shares) {
                 /* Bounding spheres apart. */
+                if (re < 0.0) {
+                    double re2 = 0.0;
+                    for (int c = 0; c < 3; c++)
+                        ce[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
+                    for (int j = 0; j < 3; j++) {
+                        double d[3];
+                        tsl_sub(p[j], ce, d);
+                        double l = tsl_dot(d, d);
+                        re2 = l > re2 ? l : re2;
+                    }
+                    re = sqrt(re2);
+                }
                 double d[3];
                 tsl_sub(ce, x->centroid, d);
-                double reach = x->radius + sqrt(re2);
+                double reach = x->radius + re;
                 if (tsl_dot(d, d) > reach * reach)
                     continue;
             }
-            const double *pp[3] = {x->p[0], x->p[1], x->p[2]};
-            if (tsl_triangles_intersect(tv, pp, ev, pe))
+            if (meets(x, ev, (const double(*)[3])p))
                 return TESSEL_OK;
         }
     }
@@ -367,10 +434,13 @@ static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
     }
     if (r->nt + more_t > r->cap_t) {
         size_t c1 = r->cap_t, c2 = r->cap_t;
+        size_t c3 = r->cap_t;
         if (grow((void **)&r->tri, &c1, r->nt + more_t, 3 * sizeof *r->tri) ||
-            grow((void **)&r->twin, &c2, r->nt + more_t, 3 * sizeof *r->twin))
+            grow((void **)&r->twin, &c2, r->nt + more_t, 3 * sizeof *r->twin) ||
+            grow((void **)&r->box, &c3, r->nt + more_t, 6 * sizeof *r->box))
             return TESSEL_ERR_NOMEM;
         r->cap_t = c1 < c2 ? c1 : c2;
+        r->cap_t = c3 < r->cap_t ? c3 : r->cap_t;
     }
     return TESSEL_OK;
 }
@@ -853,8 +923,9 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
     r.rgb = mesh->rgb ? tsl_alloc_array(3 * r.cap_v, 1) : NULL;
     r.tri = tsl_alloc_array(3 * r.cap_t, sizeof *r.tri);
     r.twin = tsl_alloc_array(3 * r.cap_t, sizeof *r.twin);
+    r.box = tsl_alloc_array(6 * r.cap_t, sizeof *r.box);
     st = TESSEL_ERR_NOMEM;
-    if (!r.xyz || !r.tri || !r.twin || (mesh->rgb && !r.rgb))
+    if (!r.xyz || !r.tri || !r.twin || !r.box || (mesh->rgb && !r.rgb))
         goto done;
     memcpy(r.xyz, mesh->xyz, 3 * r.nv * sizeof *r.xyz);
     if (r.rgb)
@@ -920,6 +991,7 @@ done:
     free(r.rgb);
     free(r.tri);
     free(r.twin);
+    free(r.box);
     map_free(&r.edges);
     tsl_trigrid_free(&r.grid);
     return st;
