@@ -346,7 +346,6 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
             return TESSEL_ERR_NOMEM;
         gp_gtri *e = &g->gt[g->gt_count++];
         e->t = t;
-        g->tstamp[t] = g->stamp;
         tsl_gp_tri_box(g, g->tri[t].v, e->lo, e->hi);
     }
     tsl_gp_link_apply(g, R, pts[0], pts[cnt], how_r, 1);
@@ -525,18 +524,28 @@ static void finish_ref(gp *g, uint32_t R)
 }
 
 /* Gathers the candidates of R: live points of the box within rho, plus the
- * required ones. */
+ * required ones. One pass collects the live points within b (rho <= b)
+ * and finds the nearest, which sets rho; the rest are dropped after. */
 static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
                             uint32_t req_a, uint32_t req_b)
 {
     double dmin2 = INFINITY;
+    /* dinf is rounded to float, hence the margin. */
+    double skip = b * (1.0 + 1e-6);
+    g->cand_count = 0;
     for (size_t k = 0; k < g->box_count; k++) {
         const gp_box *x = &g->box[k];
-        if ((double)x->dinf > b || !is_live(g, x->idx))
+        int req = x->idx == req_a || x->idx == req_b;
+        if (((double)x->dinf > skip && !req) || !is_live(g, x->idx))
             continue;
         double d2 = tsl_dot(x->rel, x->rel);
-        if (d2 > 0.0 && d2 < dmin2)
+        if (d2 == 0.0)
+            continue;
+        if ((double)x->dinf <= b && d2 < dmin2)
             dmin2 = d2;
+        tessel_status s = cand_push(g, x->idx, x->rel);
+        if (s != TESSEL_OK)
+            return s;
     }
     double m = m0;
     if (dmin2 < m * m)
@@ -546,27 +555,18 @@ static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
     f->rho = fmin(mu * m, g->rho_cap);
     double rho2 = f->rho * f->rho;
     f->reach = f->rho;
-    g->cand_count = 0;
-    /* The box reaches beyond the sphere (for the guard): skip what lies
-     * surely outside it (dinf is rounded to float, hence the margin). */
-    double skip = f->rho * (1.0 + 1e-6);
-    for (size_t k = 0; k < g->box_count; k++) {
-        const gp_box *x = &g->box[k];
-        if ((double)x->dinf > skip && x->idx != req_a && x->idx != req_b)
+    size_t w = 0;
+    for (size_t i = 0; i < g->cand_count; i++) {
+        const gp_cand *c = &g->cand[i];
+        if (c->d2 > rho2 && c->idx != req_a && c->idx != req_b)
             continue;
-        if (!is_live(g, x->idx))
-            continue;
-        double d2 = tsl_dot(x->rel, x->rel);
-        if (d2 == 0.0)
-            continue;
-        if (d2 > rho2 && x->idx != req_a && x->idx != req_b)
-            continue;
-        if (d2 > f->reach * f->reach)
-            f->reach = sqrt(d2);
-        tessel_status s = cand_push(g, x->idx, x->rel);
-        if (s != TESSEL_OK)
-            return s;
+        if (c->d2 > f->reach * f->reach)
+            f->reach = sqrt(c->d2);
+        if (w != i)
+            g->cand[w] = *c;
+        w++;
     }
+    g->cand_count = w;
     return TESSEL_OK;
 }
 

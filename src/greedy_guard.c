@@ -68,45 +68,88 @@ static inline unsigned cone_flags(const gp_cone *c, uint32_t v, const double q[2
     return f;
 }
 
-/* R's projection of point i and its cone flags, through the cache. */
-static inline unsigned project_cached(gp *g, uint32_t R, const gp_frame *f, uint32_t i,
-                                      double xy[2])
+/* The next float below / above a finite x (nextafterf, inlined: the libm
+ * calls were 0.7% of the run). */
+static inline float float_down(float x)
 {
-    gp_pcache *c = &g->pc[i & (PCACHE - 1)];
-    if (c->idx != i || c->stamp != g->stamp) {
-        double q[2];
-        project_point(g, R, f, i, q);
-        c->idx = i;
-        c->stamp = g->stamp;
-        c->x = q[0];
-        c->y = q[1];
-        c->flags = g->cone.on ? cone_flags(&g->cone, i, q) : 0;
-    }
-    xy[0] = c->x;
-    xy[1] = c->y;
-    return c->flags;
+    uint32_t u;
+    memcpy(&u, &x, sizeof u);
+    if ((u & 0x7fffffffu) == 0)
+        u = 0x80000001u; /* -0 and +0: the negative subnormal */
+    else
+        u = (u & 0x80000000u) ? u + 1 : u - 1;
+    memcpy(&x, &u, sizeof u);
+    return x;
 }
 
-static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp_frame *f,
-                                const float lo[3], const float hi[3])
+static inline float float_up(float x) { return -float_down(-x); }
+
+/* Per-point marks of one collection (g->pmark): the stamp above, then
+ * whether the point was looked at from the box (and so lists its
+ * triangles), whether it passes, and its CONE_* flags. */
+enum { PM_FLAGS = 15, PM_PASS = 16, PM_LISTS = 32, PM_SHIFT = 6 };
+#define PM_STAMP_MAX (UINT32_MAX >> PM_SHIFT)
+
+/* Context of one collection. */
+typedef struct gp_gctx {
+    const gp_cone *cone;
+    const gp_frame *f;
+    const float *r;   /* R's position */
+    double half;
+    uint32_t mark;    /* stamp << PM_SHIFT */
+    float lo[3], hi[3];
+} gp_gctx;
+
+/* Whether some triangle of point v (at rel from R) could meet a new
+ * triangle, and v's cone flags. Every point of a triangle lies within the
+ * triangle's longest edge of each of its vertices, so a triangle meeting a
+ * new one has all three vertices within their longest edge of the new
+ * triangles' box and, in R's projection, of the free cone. Returns the
+ * PM_PASS | flags bits (0: no triangle of v needs a test). */
+static inline unsigned point_test(const gp *g, const gp_gctx *c, uint32_t v, const double rel[3])
 {
-    g->tstamp[t] = g->stamp;
-    const gp_tri *T = &g->tri[t];
-    /* Outside the new triangles' box: cannot meet them. */
-    float tl[3], th[3];
-    tsl_gp_tri_box(g, T->v, tl, th);
-    if (tl[0] > hi[0] || th[0] < lo[0] || tl[1] > hi[1] || th[1] < lo[1] || tl[2] > hi[2] ||
-        th[2] < lo[2])
+    const gp_frame *f = c->f;
+    double out = 0.0;
+    for (int a = 0; a < 3; a++)
+        out = dmax(out, dmax(f->flo[a] - rel[a], rel[a] - f->fhi[a]));
+    double reach_v = (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * c->half;
+    if (out > reach_v)
+        return 0;
+    if (!c->cone->on)
+        return PM_PASS;
+    double q[2] = {tsl_dot(rel, f->u), tsl_dot(rel, f->v)};
+    if (cone_dist2(c->cone, q) > reach_v * reach_v)
+        return 0;
+    return PM_PASS | cone_flags(c->cone, v, q);
+}
+
+/* The marks of a triangle vertex w: from the box pass, else computed (w lies
+ * outside the box) and cached without PM_LISTS. */
+static inline uint32_t vertex_marks(gp *g, const gp_gctx *c, uint32_t w)
+{
+    uint32_t m = g->pmark[w];
+    if ((m & ~(uint32_t)63) == c->mark)
+        return m;
+    const float *p = g->xyz + 3 * (size_t)w;
+    double rel[3] = {(double)p[0] - c->r[0], (double)p[1] - c->r[1], (double)p[2] - c->r[2]};
+    m = c->mark | point_test(g, c, w, rel);
+    g->pmark[w] = m;
+    return m;
+}
+
+/* Adds held triangle t to the collection unless the cone certificate or
+ * the boxes rule it out; flags: the AND of its vertices' cone flags. */
+static inline tessel_status guard_push(gp *g, const gp_gctx *c, uint32_t t, unsigned flags)
+{
+    if (c->cone->on && flags)
         return TESSEL_OK;
-    if (cone->on) {
-        double q[2];
-        unsigned fl = project_cached(g, cone->R, f, T->v[0], q);
-        fl &= project_cached(g, cone->R, f, T->v[1], q);
-        fl &= project_cached(g, cone->R, f, T->v[2], q);
-        if (fl)
-            return TESSEL_OK;
-    }
-    if (grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
+    float tl[3], th[3];
+    tsl_gp_tri_box(g, g->tri[t].v, tl, th);
+    if (tl[0] > c->hi[0] || th[0] < c->lo[0] || tl[1] > c->hi[1] || th[1] < c->lo[1] ||
+        tl[2] > c->hi[2] || th[2] < c->lo[2])
+        return TESSEL_OK;
+    if (g->gt_count == g->gt_cap &&
+        grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
         return TESSEL_ERR_NOMEM;
     gp_gtri *e = &g->gt[g->gt_count++];
     e->t = t;
@@ -115,20 +158,42 @@ static tessel_status guard_push(gp *g, uint32_t t, const gp_cone *cone, const gp
     return TESSEL_OK;
 }
 
+/* The short triangles of point v (which passed and lists its triangles)
+ * whose other two vertices pass too and do not list them before v. */
+static inline tessel_status collect_point(gp *g, const gp_gctx *c, uint32_t v, unsigned fv)
+{
+    for (uint32_t t = g->head[v]; t != NONE;) {
+        const gp_tri *T = &g->tri[t];
+        int k = tri_pos(T, v);
+        uint32_t cur = t;
+        t = T->next[k];
+        int j1 = k == 2 ? 0 : k + 1, j2 = k == 0 ? 2 : k - 1;
+        uint32_t m1 = vertex_marks(g, c, T->v[j1]);
+        if (!(m1 & PM_PASS) || (j1 < k && (m1 & PM_LISTS)))
+            continue;
+        uint32_t m2 = vertex_marks(g, c, T->v[j2]);
+        if (!(m2 & PM_PASS) || (j2 < k && (m2 & PM_LISTS)) || (g->tflag[cur] & TF_LONG))
+            continue;
+        tessel_status s = guard_push(g, c, cur, fv & m1 & m2 & PM_FLAGS);
+        if (s != TESSEL_OK)
+            return s;
+    }
+    return TESSEL_OK;
+}
+
 /* Collects the held triangles that a new triangle in the box [flo, fhi]
- * (within f->reach of R) could meet and that the cone does not rule out:
- * those with a vertex in the box of half-size reach + delta around R (a
- * triangle whose vertices all lie outside has an edge longer than ell and
- * is in the long-triangle grid). A point farther from the new triangles'
- * box, or whose projection is farther from the free cone, than its longest
- * edge cannot have a triangle reaching them: skipped whole. */
+ * (within f->reach of R) could meet and that the cone does not rule out.
+ * A triangle whose edges are at most ell and that meets the box of
+ * half-size reach has a vertex within delta of it, so in g->box; longer
+ * triangles are in the long-triangle grid. Each triangle is looked at once:
+ * from the first of its vertices that lists its triangles (in the box, or
+ * R) and passes point_test; the others must pass too. */
 tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone)
 {
     double half = f->reach + g->delta;
     g->stamp++;
-    if (g->stamp == 0) {
-        for (size_t t = 0; t < g->tused; t++)
-            g->tstamp[t] = 0;
+    if (g->stamp > PM_STAMP_MAX) {
+        memset(g->pmark, 0, g->n * sizeof *g->pmark);
         g->stamp = 1;
     }
     g->gt_count = 0;
@@ -155,57 +220,47 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
         cone.eps = 1e-9 * span * span;
     }
     g->cone = cone;
-    const float *r = g->xyz + 3 * (size_t)R;
-    float lo[3], hi[3];
+    gp_gctx c;
+    c.cone = &g->cone;
+    c.f = f;
+    c.r = g->xyz + 3 * (size_t)R;
+    c.half = half;
+    c.mark = g->stamp << PM_SHIFT;
     for (int k = 0; k < 3; k++) {
         /* The new triangles' box, rounded outward to floats. */
-        lo[k] = nextafterf((float)(r[k] + f->flo[k]), -INFINITY);
-        hi[k] = nextafterf((float)(r[k] + f->fhi[k]), INFINITY);
+        c.lo[k] = float_down((float)(c.r[k] + f->flo[k]));
+        c.hi[k] = float_up((float)(c.r[k] + f->fhi[k]));
     }
-    tessel_status s;
+    /* Marks first (a triangle needs all three vertices to pass), listing
+     * the points that pass; R (not in its box) passes with every flag. */
+    if (grow((void **)&g->gpass, &g->gpass_cap, g->box_count + 1, sizeof *g->gpass))
+        return TESSEL_ERR_NOMEM;
+    uint32_t *pass = g->gpass;
+    size_t np = 0;
+    g->pmark[R] = c.mark | PM_LISTS | PM_PASS | PM_FLAGS;
+    pass[np++] = R;
     for (size_t k = 0; k < g->box_count; k++) {
         const gp_box *b = &g->box[k];
         uint32_t v = b->idx;
-        if ((double)b->dinf > half || g->head[v] == NONE)
+        if (g->head[v] == NONE)
             continue;
-        /* v's triangles lie within its longest edge of it: none reaches the
-         * new triangles' box if v is farther from it than that. */
-        double out = 0.0;
-        for (int a = 0; a < 3; a++)
-            out = dmax(out, dmax(f->flo[a] - b->rel[a], b->rel[a] - f->fhi[a]));
-        if (out > (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * half)
-            continue;
-        if (cone.on) {
-            double q[2] = {tsl_dot(b->rel, f->u), tsl_dot(b->rel, f->v)};
-            gp_pcache *pc = &g->pc[v & (PCACHE - 1)];
-            pc->idx = v;
-            pc->stamp = g->stamp;
-            pc->x = q[0];
-            pc->y = q[1];
-            pc->flags = cone_flags(&cone, v, q);
-            double reach_v = (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * half;
-            if (cone_dist2(&cone, q) > reach_v * reach_v)
-                continue;
-        }
-        for (uint32_t t = g->head[v]; t != NONE;) {
-            const gp_tri *T = &g->tri[t];
-            if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f, lo, hi)) != TESSEL_OK)
-                return s;
-            t = T->next[tri_pos(T, v)];
-        }
+        unsigned m = point_test(g, &c, v, b->rel);
+        g->pmark[v] = c.mark | PM_LISTS | m;
+        if (m)
+            pass[np++] = v;
     }
-    /* R's own triangles (R is not in its box). */
-    for (uint32_t t = g->head[R]; t != NONE;) {
-        const gp_tri *T = &g->tri[t];
-        if (g->tstamp[t] != g->stamp && (s = guard_push(g, t, &cone, f, lo, hi)) != TESSEL_OK)
+    tessel_status s;
+    for (size_t i = 0; i < np; i++) {
+        uint32_t v = pass[i];
+        if ((s = collect_point(g, &c, v, g->pmark[v] & PM_FLAGS)) != TESSEL_OK)
             return s;
-        t = T->next[tri_pos(T, R)];
     }
-    /* Long triangles of the cells the box overlaps. */
+    /* Long triangles of the cells the box overlaps, each in the first of
+     * them that it overlaps. */
     if (!g->lg_slots)
         return TESSEL_OK;
     uint32_t c0[3], c1[3];
-    tsl_gp_lg_cells(g, lo, hi, c0, c1);
+    tsl_gp_lg_cells(g, c.lo, c.hi, c0, c1);
     for (uint32_t z = c0[2]; z <= c1[2]; z++)
         for (uint32_t y = c0[1]; y <= c1[1]; y++)
             for (uint32_t x = c0[0]; x <= c1[0]; x++) {
@@ -214,9 +269,19 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
                     continue;
                 for (uint32_t e = g->lg_head[h]; e != NONE; e = g->lt_next[e]) {
                     uint32_t t = g->lt_tri[e];
-                    if (g->tstamp[t] == g->stamp)
+                    const gp_tri *T = &g->tri[t];
+                    float tl[3], th[3];
+                    uint32_t t0[3], t1[3];
+                    tsl_gp_tri_box(g, T->v, tl, th);
+                    tsl_gp_lg_cells(g, tl, th, t0, t1);
+                    if (x != (t0[0] > c0[0] ? t0[0] : c0[0]) ||
+                        y != (t0[1] > c0[1] ? t0[1] : c0[1]) ||
+                        z != (t0[2] > c0[2] ? t0[2] : c0[2]))
                         continue;
-                    if ((s = guard_push(g, t, &cone, f, lo, hi)) != TESSEL_OK)
+                    unsigned fl = PM_PASS | PM_FLAGS;
+                    for (int j = 0; j < 3; j++)
+                        fl &= vertex_marks(g, &c, T->v[j]);
+                    if ((fl & PM_PASS) && (s = guard_push(g, &c, t, fl & PM_FLAGS)) != TESSEL_OK)
                         return s;
                 }
             }

@@ -85,15 +85,6 @@ typedef struct gp_cone {
     double eps;       /* margin for the rounding of projections */
 } gp_cone;
 
-/* Projections of points on the current reference point's plane, cached by
- * point index (direct-mapped; valid while stamp matches). */
-#define PCACHE 1024
-typedef struct gp_pcache {
-    uint32_t idx, stamp;
-    double x, y;
-    unsigned flags;       /* CONE_* tests the point passes */
-} gp_pcache;
-
 typedef struct gp {
     /* input and parameters */
     const tessel_cloud *cloud;
@@ -138,8 +129,8 @@ typedef struct gp {
 
     /* triangle pool */
     gp_tri *tri;
-    uint32_t *tstamp;
     uint8_t *tflag;
+    uint32_t *tblock;     /* retirement block of the triangle's first vertex */
     size_t tcap, tused, talive;
     uint32_t tfree;
     size_t created_since_sweep, alive_after_sweep;
@@ -176,11 +167,13 @@ typedef struct gp {
     size_t seq_count, seq_cap;
     gp_gtri *gt;
     size_t gt_count, gt_cap;
-    uint32_t stamp;
+    uint32_t stamp;       /* of the guard's collection */
     int empty_gap;        /* the last fill found no candidate between R's
                              boundary neighbours */
     gp_cone cone;         /* of the current reference point */
-    gp_pcache *pc;        /* PCACHE entries */
+    uint32_t *pmark;      /* per point: marks of the guard's collection */
+    uint32_t *gpass;      /* guard: points whose triangles it lists */
+    size_t gpass_cap;
     double *hn;           /* hole closing: fan normals of the loop, 3 each */
     size_t hn_cap;
 

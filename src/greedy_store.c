@@ -96,8 +96,20 @@ static tessel_status build_dexels(gp *g, const double ext[3], double cell)
             rec[k - s].b = p[g->av];
             rec[k - s].i = ord[k];
         }
-        if (e - s > 1)
+        /* Insertion sort for the usual few dozen points per column. */
+        if (e - s > 64) {
             qsort(rec, e - s, sizeof *rec, cmp_sortrec);
+        } else {
+            for (size_t k = 1; k < e - s; k++) {
+                gp_sortrec x = rec[k];
+                size_t j = k;
+                while (j > 0 && cmp_sortrec(&rec[j - 1], &x) > 0) {
+                    rec[j] = rec[j - 1];
+                    j--;
+                }
+                rec[j] = x;
+            }
+        }
         for (size_t k = s; k < e; k++) {
             uint32_t i = rec[k - s].i;
             g->orig[k] = i;
@@ -430,19 +442,18 @@ static tessel_status tri_alloc(gp *g, uint32_t *out)
             if (!nt)
                 return TESSEL_ERR_NOMEM;
             g->tri = nt;
-            uint32_t *ns = realloc(g->tstamp, cap * sizeof *ns);
-            if (!ns)
-                return TESSEL_ERR_NOMEM;
-            g->tstamp = ns;
             uint8_t *nf = realloc(g->tflag, cap * sizeof *nf);
             if (!nf)
                 return TESSEL_ERR_NOMEM;
             g->tflag = nf;
+            uint32_t *nb = realloc(g->tblock, cap * sizeof *nb);
+            if (!nb)
+                return TESSEL_ERR_NOMEM;
+            g->tblock = nb;
             g->tcap = cap;
         }
         t = (uint32_t)g->tused++;
     }
-    g->tstamp[t] = 0;
     g->tflag[t] = TF_ALIVE;
     *out = t;
     return TESSEL_OK;
@@ -507,7 +518,7 @@ static int blocks_dead(const gp *g, size_t b, long k)
 static int retirable(const gp *g, uint32_t t)
 {
     const gp_tri *T = &g->tri[t];
-    size_t b = block_of(g, g->xyz + 3 * (size_t)T->v[0]);
+    size_t b = g->tblock[t];
     if (g->bdead[b] != 27)
         return 0;
     if (!(g->tflag[t] & TF_LONG))
@@ -609,6 +620,7 @@ tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
             g->label[v[k]] = lab;
     if (existing)
         g->tflag[t] |= TF_EXISTING;
+    g->tblock[t] = (uint32_t)block_of(g, g->xyz + 3 * (size_t)a);
     double pa[3], pb[3], pc[3], d[3];
     pos(g, a, pa);
     pos(g, b, pb);
@@ -713,8 +725,8 @@ void tsl_gp_free(gp *g)
     free(g->lg_keys);
     free(g->lg_head);
     free(g->tri);
-    free(g->tstamp);
     free(g->tflag);
+    free(g->tblock);
     free(g->lt_tri);
     free(g->lt_next);
     free(g->queue);
@@ -725,7 +737,8 @@ void tsl_gp_free(gp *g)
     free(g->cand);
     free(g->seq);
     free(g->gt);
-    free(g->pc);
+    free(g->pmark);
+    free(g->gpass);
     free(g->hn);
 }
 
@@ -904,9 +917,9 @@ tessel_status tsl_gp_init(gp *g)
     g->queue = tsl_alloc_array(n, sizeof *g->queue);
     g->seed_order = tsl_alloc_array(n, sizeof *g->seed_order);
     g->out = tsl_alloc_array(OUT_BATCH, 3 * sizeof *g->out);
-    g->pc = tsl_calloc_array(PCACHE, sizeof *g->pc);
+    g->pmark = tsl_calloc_array(n, sizeof *g->pmark);
     if (!g->xyz || !g->orig || !g->state || !g->head || !g->ls || !g->le || !g->label ||
-        !g->queue || !g->seed_order || !g->out || !g->maxe || !g->pc)
+        !g->queue || !g->seed_order || !g->out || !g->maxe || !g->pmark)
         return TESSEL_ERR_NOMEM;
     memset(g->head, 0xff, n * sizeof *g->head);
     memset(g->ls, 0xff, n * sizeof *g->ls);
