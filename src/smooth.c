@@ -40,6 +40,18 @@
 #include <omp.h>
 #endif
 
+/* The per-point kernels are compiled twice, for AVX2 and for the baseline,
+ * and the loader picks one per machine (GNU ifunc): the lane loops below
+ * then run eight floats to a vector instead of four. AVX2 alone, without
+ * FMA, does the same additions and multiplications in the same order, so
+ * the output is the same bits on every machine (checked on the noisy scans
+ * against a build with -DTESSEL_NO_CLONES). */
+#if defined(__x86_64__) && defined(__ELF__) && defined(__GNUC__) && !defined(TESSEL_NO_CLONES)
+#define TSL_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define TSL_CLONES
+#endif
+
 /* Neighbour buffers live on the stack of each query, so k is capped. */
 #define SMOOTH_MAX_K 256u
 
@@ -285,7 +297,7 @@ static void fit_pad(fit_buf *b)
 }
 
 /* Weighted moments about the query: W, sums of om d and of om d d^T. */
-static void plane_moments(fit_buf *b, double W[1], double s[3], double mm[6])
+TSL_CLONES static void plane_moments(fit_buf *b, double W[1], double s[3], double mm[6])
 {
     const size_t mp = b->mp;
     float *ox = b->t[0], *oy = b->t[1], *oz = b->t[2];
@@ -315,7 +327,7 @@ static bool plane_from_moments(double W, const double s[3], const double mm[6], 
 
 /* Robust weights om = w exp(-h^2 / 2 sigma_rho^2) for the plane n.d = t,
  * w the Gaussian distance weight (one exp for both). */
-static void plane_weights(fit_buf *b, const double n[3], double t, float inv_2sr2)
+TSL_CLONES static void plane_weights(fit_buf *b, const double n[3], double t, float inv_2sr2)
 {
     const float nx = (float)n[0], ny = (float)n[1], nz = (float)n[2], tf = (float)t;
     const size_t mp = b->mp;
@@ -384,7 +396,7 @@ typedef struct frame_sums {
  * 15 moments of om u^i v^j (i + j <= 4), the 6 of om z u^i v^j (i + j <=
  * 2) and that of om z^2. Order of s: 1, u, v, uu, uv, vv, uuu, uuv, uvv,
  * vvv, uuuu, uuuv, uuvv, uvvv, vvvv, z, zu, zv, zuu, zuv, zvv, zz. */
-static void frame_sweep(fit_buf *b, const double n[3], double t, double inv_h, frame_sums *fs)
+TSL_CLONES static void frame_sweep(fit_buf *b, const double n[3], double t, double inv_h, frame_sums *fs)
 {
     double a[3] = {0, 0, 0};
     a[fabs(n[0]) < 0.6 ? 0 : 1] = 1.0;
@@ -493,7 +505,7 @@ static bool frame_height(const frame_sums *fs, double ridge, double *f)
  * Q is the foot point on the last plane the weights belong to, lifted by
  * the quadric's height over it (quadric on), or the foot point on the
  * final plane (the paper's operator). */
-static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *start, double n[3],
+TSL_CLONES static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *start, double n[3],
                        double move[3], uint32_t *iterations)
 {
     if (b->m < f->min_neighbors)
@@ -1132,7 +1144,7 @@ static inline size_t block_select(block *b, size_t m, int32_t tb)
  * *guess) picks a few; they are sorted as 64-bit keys (distance bits, which
  * order like the distances since they are >= 0, then block slot), equal
  * distances reordered by point index, and the first k kept. */
-static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, float r2max,
+TSL_CLONES static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, float r2max,
                        float *guess)
 {
     const size_t m = b->m;
@@ -1296,7 +1308,7 @@ static void count_fit(pass_count *c, bool fit, uint32_t its, uint32_t max_iterat
 /* First pass over the points of cell ci: finds the k nearest neighbours
  * within the cut-off (recorded for the later passes) and smooths. b is
  * scratch. */
-static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pass_count *pc)
+TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pass_count *pc)
 {
     const cell_grid *g = x->g;
     const fit_ctl *f = x->f;
@@ -1383,7 +1395,7 @@ static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pas
 
 /* A later pass for sorted positions [s0, s1): the first pass's neighbours
  * at their current positions. */
-static void refit_range(const pass_ctx *x, fit_buf *fb, size_t s0, size_t s1, pass_count *pc)
+TSL_CLONES static void refit_range(const pass_ctx *x, fit_buf *fb, size_t s0, size_t s1, pass_count *pc)
 {
     const fit_ctl *f = x->f;
     const float *cur = x->cur_xyz;
