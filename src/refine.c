@@ -773,6 +773,66 @@ typedef struct round_ctx {
     int threads;
 } round_ctx;
 
+/* Bits per axis of the cells that order the edges' neighbour searches. */
+#define ORDER_BITS 6
+
+/* Spreads the low ORDER_BITS bits of x three apart (Morton code). */
+static uint32_t spread3(uint32_t x)
+{
+    uint32_t y = 0;
+    for (int b = 0; b < ORDER_BITS; b++)
+        y |= ((x >> b) & 1u) << (3 * b);
+    return y;
+}
+
+/* The jobs' indices in Morton order of their midpoints' cells (a counting
+ * sort over 2^(3 ORDER_BITS) cells of the mesh's box), so that consecutive
+ * neighbour searches walk the same part of the kd-tree: on 10^6 points the
+ * tree does not fit in cache and searches in edge order spend most of
+ * their time waiting for memory. The order changes no result. */
+static tessel_status spatial_order(const rf *r, const split_job *jobs, size_t ne,
+                                   uint32_t **out)
+{
+    const size_t cells = (size_t)1 << (3 * ORDER_BITS);
+    uint32_t *order = tsl_alloc_array(ne ? ne : 1, sizeof *order);
+    uint32_t *key = tsl_alloc_array(ne ? ne : 1, sizeof *key);
+    size_t *start = tsl_calloc_array(cells + 1, sizeof *start);
+    if (!order || !key || !start) {
+        free(order);
+        free(key);
+        free(start);
+        return TESSEL_ERR_NOMEM;
+    }
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t v = 0; v < r->nv; v++)
+        for (int k = 0; k < 3; k++) {
+            float x = r->xyz[3 * v + k];
+            lo[k] = x < lo[k] ? x : lo[k];
+            hi[k] = x > hi[k] ? x : hi[k];
+        }
+    double scale[3];
+    for (int k = 0; k < 3; k++)
+        scale[k] = hi[k] > lo[k] ? (double)((1 << ORDER_BITS) - 1) / ((double)hi[k] - lo[k]) : 0.0;
+    for (size_t e = 0; e < ne; e++) {
+        const float *a = r->xyz + 3 * (size_t)jobs[e].u, *b = r->xyz + 3 * (size_t)jobs[e].v;
+        uint32_t m = 0;
+        for (int k = 0; k < 3; k++) {
+            double x = 0.5 * ((double)a[k] + b[k]) - lo[k];
+            m |= spread3((uint32_t)(x * scale[k] + 0.5)) << k;
+        }
+        key[e] = m;
+        start[m + 1]++;
+    }
+    for (size_t i = 0; i < cells; i++)
+        start[i + 1] += start[i];
+    for (size_t e = 0; e < ne; e++)
+        order[start[key[e]]++] = (uint32_t)e;
+    free(key);
+    free(start);
+    *out = order;
+    return TESSEL_OK;
+}
+
 static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_params *p)
 {
     /* Candidate edges: each undirected edge once (its half-edge with the
@@ -780,6 +840,7 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
     size_t nh = 3 * r->nt, ne = 0;
     split_job *jobs = tsl_alloc_array(nh, sizeof *jobs);
     uint8_t *want = NULL;
+    uint32_t *order = NULL;
     double *vn = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!jobs)
@@ -793,13 +854,14 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
         ne++;
     }
     want = tsl_calloc_array(ne ? ne : 1, 1);
-    if (!want || (st = vertex_normals(r, &vn)))
+    if (!want || (st = vertex_normals(r, &vn)) || (st = spatial_order(r, jobs, ne, &order)))
         goto done;
     size_t far = 0, unfit = 0;
     long long count = (long long)ne;
 #pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(c->threads)) \
     reduction(+ : far, unfit)
-    for (long long ii = 0; ii < count; ii++) {
+    for (long long oo = 0; oo < count; oo++) {
+        size_t ii = order[oo];
         split_job *jb = &jobs[ii];
         double pu[3], pv[3], d[3], m[3], nm[3];
         vtx(r, jb->u, pu);
@@ -873,6 +935,7 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
 done:
     free(jobs);
     free(want);
+    free(order);
     free(vn);
     return st;
 }
