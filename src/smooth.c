@@ -340,38 +340,40 @@ TSL_CLONES static void plane_weights(fit_buf *b, const double n[3], double t, fl
         b->om[j] = b->on[j] * fast_exp(b->om[j]);
 }
 
-/* Solves the symmetric positive definite 6x6 system a x = r (Cholesky);
- * false when a is not positive definite to working precision. */
+/* Solves the symmetric positive definite 6x6 system a x = r by LDL^T
+ * (no square roots on the dependency chain, unlike Cholesky); false when a
+ * is not positive definite to working precision. */
 static bool solve6(const double a[6][6], const double r[6], double x[6])
 {
     double L[6][6], inv[6];
     for (int i = 0; i < 6; i++) {
+        double LD[6]; /* L[i][j] D[j] */
         for (int j = 0; j < i; j++) {
             double s = a[i][j];
             for (int k = 0; k < j; k++)
-                s -= L[i][k] * L[j][k];
+                s -= LD[k] * L[j][k];
+            LD[j] = s;
             L[i][j] = s * inv[j];
         }
         double s = a[i][i];
         for (int k = 0; k < i; k++)
-            s -= L[i][k] * L[i][k];
+            s -= LD[k] * L[i][k];
         if (!(s > 1e-12 * a[i][i]))
             return false;
-        L[i][i] = sqrt(s);
-        inv[i] = 1.0 / L[i][i];
+        inv[i] = 1.0 / s;
     }
     double y[6];
     for (int i = 0; i < 6; i++) {
         double s = r[i];
         for (int k = 0; k < i; k++)
             s -= L[i][k] * y[k];
-        y[i] = s * inv[i];
+        y[i] = s;
     }
     for (int i = 5; i >= 0; i--) {
-        double s = y[i];
+        double s = y[i] * inv[i];
         for (int k = i + 1; k < 6; k++)
             s -= L[k][i] * x[k];
-        x[i] = s * inv[i];
+        x[i] = s;
     }
     return true;
 }
