@@ -96,6 +96,7 @@ typedef struct gp_gctx {
     const gp_frame *f;
     const float *r;   /* R's position */
     double half;
+    double tiny;      /* 1e-9 * half: rounding margin */
     uint32_t mark;    /* stamp << PM_SHIFT */
     float lo[3], hi[3];
 } gp_gctx;
@@ -109,12 +110,14 @@ typedef struct gp_gctx {
 static inline unsigned point_test(const gp *g, const gp_gctx *c, uint32_t v, const double rel[3])
 {
     const gp_frame *f = c->f;
-    double out = 0.0;
-    for (int a = 0; a < 3; a++)
-        out = dmax(out, dmax(f->flo[a] - rel[a], rel[a] - f->fhi[a]));
-    double reach_v = (double)g->maxe[v] * (1.0 + 1e-9) + 1e-9 * c->half;
-    if (out > reach_v)
+    double reach_v = (double)g->maxe[v] * (1.0 + 1e-9) + c->tiny;
+    /* The new triangles lie in the ball of radius reach around R. */
+    double ball = f->reach + reach_v;
+    if (tsl_dot(rel, rel) > ball * ball * (1.0 + 1e-9))
         return 0;
+    for (int a = 0; a < 3; a++)
+        if (f->flo[a] - rel[a] > reach_v || rel[a] - f->fhi[a] > reach_v)
+            return 0;
     if (!c->cone->on)
         return PM_PASS;
     double q[2] = {tsl_dot(rel, f->u), tsl_dot(rel, f->v)};
@@ -190,7 +193,7 @@ static inline tessel_status collect_point(gp *g, const gp_gctx *c, uint32_t v, u
  * R) and passes point_test; the others must pass too. */
 tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone)
 {
-    double half = f->reach + g->delta;
+    double half = f->reach + f->delta;
     g->stamp++;
     if (g->stamp > PM_STAMP_MAX) {
         memset(g->pmark, 0, g->n * sizeof *g->pmark);
@@ -225,6 +228,7 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     c.f = f;
     c.r = g->xyz + 3 * (size_t)R;
     c.half = half;
+    c.tiny = 1e-9 * half;
     c.mark = g->stamp << PM_SHIFT;
     for (int k = 0; k < 3; k++) {
         /* The new triangles' box, rounded outward to floats. */

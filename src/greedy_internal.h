@@ -126,6 +126,8 @@ typedef struct gp {
     uint32_t bn[3];
     uint32_t *blive;      /* live points in the block */
     uint8_t *bdead;       /* dead blocks among the 27 around it */
+    float *bmaxl;         /* longest edge of the short triangles whose first
+                             vertex is in the block (never lowered) */
 
     /* triangle pool */
     gp_tri *tri;
@@ -186,6 +188,7 @@ typedef struct gp_frame {
     double n[3], u[3], v[3];
     double rho;        /* radius of the sphere of influence */
     double reach;      /* every new triangle lies within reach of R */
+    double delta;      /* guard margin here (<= g->delta) */
     double flo[3], fhi[3]; /* box (relative to R) holding every triangle the
                               guard will be asked about */
 } gp_frame;
@@ -300,12 +303,18 @@ void tsl_gp_free(gp *g);
  * consistently oriented mesh). */
 tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count);
 /* Points other than R, not dead, in the box of half-size half around R,
- * into g->box. */
-tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half);
+ * into g->box; beyond core (<= half) only points with triangles within
+ * their longest edge of the box of half-size core. */
+tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core);
 /* Distance from point i to its nearest point (live ones only if
  * live_only) with boxes doubling from start up to limit; INFINITY if none. */
 tessel_status tsl_gp_nearest(gp *g, uint32_t i, int live_only, double start, double limit,
                              double *dist);
+/* The guard margin around R when every new triangle lies in the box of
+ * half-size core around it: longest held short triangle edge nearby over
+ * sqrt(3) (a triangle meeting that box has a vertex within it), at most
+ * g->delta. */
+double tsl_gp_local_delta(const gp *g, uint32_t R, double core);
 /* Point i is no longer live (completed or left out). */
 void tsl_gp_point_settled(gp *g, uint32_t i);
 tessel_status tsl_gp_flush_out(gp *g);

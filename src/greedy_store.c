@@ -124,8 +124,10 @@ static tessel_status build_dexels(gp *g, const double ext[3], double cell)
 /* Collects into g->box every point other than R that is not dead and lies
  * in the axis-aligned box of half-size `half` around R (section 4.1, first
  * stage of the distance criterion). Completed points whose triangles have
- * all left memory cost nothing further. */
-tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half)
+ * all left memory cost nothing further. Beyond `core` (<= half) only points
+ * with triangles that may reach into the box of half-size core are kept:
+ * within their longest edge of it (the guard looks for nothing else). */
+tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
 {
     double c[3];
     pos(g, R, c);
@@ -164,6 +166,10 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half)
                 int s_i = st(g, i);
                 if (s_i == ST_DEAD || (s_i == ST_DONE && g->head[i] == NONE))
                     continue;
+                if (dinf > core && (g->head[i] == NONE ||
+                                    dinf - core > (double)g->maxe[i] * (1.0 + 1e-6) +
+                                                      1e-6 * half))
+                    continue;
                 if (g->box_count == g->box_cap &&
                     grow((void **)&g->box, &g->box_cap, g->box_count + 1, sizeof *g->box))
                     return TESSEL_ERR_NOMEM;
@@ -190,7 +196,7 @@ tessel_status tsl_gp_nearest(gp *g, uint32_t i, int live_only, double start, dou
     for (double h = start;; h *= 2.0) {
         if (h > limit)
             h = limit;
-        tessel_status s = tsl_gp_scan_box(g, i, h);
+        tessel_status s = tsl_gp_scan_box(g, i, h, h);
         if (s != TESSEL_OK)
             return s;
         double best = INFINITY;
@@ -237,6 +243,28 @@ static void block_died(gp *g, size_t b)
             }
 }
 
+double tsl_gp_local_delta(const gp *g, uint32_t R, double core)
+{
+    /* A short triangle meeting the box has its first vertex within ell of
+     * it. */
+    const float *r = g->xyz + 3 * (size_t)R;
+    double w = core + g->ell;
+    uint32_t b0[3], b1[3];
+    for (int k = 0; k < 3; k++) {
+        b0[k] = grid_coord(r[k] - w, g->glo[k], g->inv_block, g->bn[k]);
+        b1[k] = grid_coord(r[k] + w, g->glo[k], g->inv_block, g->bn[k]);
+    }
+    float l = 0.0f;
+    for (uint32_t z = b0[2]; z <= b1[2]; z++)
+        for (uint32_t y = b0[1]; y <= b1[1]; y++)
+            for (uint32_t x = b0[0]; x <= b1[0]; x++) {
+                float bl = g->bmaxl[((size_t)z * g->bn[1] + y) * g->bn[0] + x];
+                l = bl > l ? bl : l;
+            }
+    double d = (double)l / sqrt(3.0) * (1.0 + 1e-6);
+    return d < g->delta ? d : g->delta;
+}
+
 /* Point i stops being live (completed or left out). */
 void tsl_gp_point_settled(gp *g, uint32_t i)
 {
@@ -263,7 +291,8 @@ static tessel_status init_blocks(gp *g, const double ext[3], double width)
     }
     g->blive = tsl_calloc_array(nb, sizeof *g->blive);
     g->bdead = tsl_calloc_array(nb, sizeof *g->bdead);
-    if (!g->blive || !g->bdead)
+    g->bmaxl = tsl_calloc_array(nb, sizeof *g->bmaxl);
+    if (!g->blive || !g->bdead || !g->bmaxl)
         return TESSEL_ERR_NOMEM;
     for (size_t i = 0; i < g->n; i++)
         if (st(g, (uint32_t)i) != ST_DEAD)
@@ -647,6 +676,11 @@ tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
         g->tflag[t] |= TF_LONG;
         if ((s = long_register(g, t)) != TESSEL_OK)
             return s;
+    } else {
+        float l = (float)(sqrt(e2) * (1.0 + 1e-6));
+        float *bl = &g->bmaxl[g->tblock[t]];
+        if (l > *bl)
+            *bl = l;
     }
     g->talive++;
     g->created_since_sweep++;
@@ -722,6 +756,7 @@ void tsl_gp_free(gp *g)
     free(g->col);
     free(g->blive);
     free(g->bdead);
+    free(g->bmaxl);
     free(g->lg_keys);
     free(g->lg_head);
     free(g->tri);
