@@ -535,8 +535,8 @@ static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
     g->cand_count = 0;
     for (size_t k = 0; k < g->box_count; k++) {
         const gp_box *x = &g->box[k];
-        int req = x->idx == req_a || x->idx == req_b;
-        if (((double)x->dinf > skip && !req) || !is_live(g, x->idx))
+        if (((double)x->dinf > skip && x->idx != req_a && x->idx != req_b) ||
+            !is_live(g, x->idx))
             continue;
         double d2 = tsl_dot(x->rel, x->rel);
         if (d2 == 0.0)
@@ -1129,7 +1129,12 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
     if (s == TESSEL_OK)
         s = tsl_progress(callbacks, "greedy", 1.0);
     if (s == TESSEL_OK) {
-        g.sum.boundary_edges = (size_t)g.boundary_edges;
+        /* Every point of an open fan has two boundary edges (the mesh is
+         * vertex-manifold), every boundary edge two such points. */
+        for (size_t i = 0; i < g.n; i++) {
+            int si = g.state[i] & ST_MASK;
+            g.sum.boundary_edges += si == ST_FRINGE || si == ST_BOUNDARY;
+        }
         for (size_t i = 0; i < g.uf_count; i++)
             g.sum.components += g.uf[i] == i;
         g.sum.seconds = now_seconds() - t0;

@@ -68,22 +68,6 @@ static inline unsigned cone_flags(const gp_cone *c, uint32_t v, const double q[2
     return f;
 }
 
-/* The next float below / above a finite x (nextafterf, inlined: the libm
- * calls were 0.7% of the run). */
-static inline float float_down(float x)
-{
-    uint32_t u;
-    memcpy(&u, &x, sizeof u);
-    if ((u & 0x7fffffffu) == 0)
-        u = 0x80000001u; /* -0 and +0: the negative subnormal */
-    else
-        u = (u & 0x80000000u) ? u + 1 : u - 1;
-    memcpy(&x, &u, sizeof u);
-    return x;
-}
-
-static inline float float_up(float x) { return -float_down(-x); }
-
 /* Per-point marks of one collection (g->pmark): the stamp above, then
  * whether the point was looked at from the box (and so lists its
  * triangles), whether it passes, and its CONE_* flags. */
@@ -232,8 +216,8 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     c.mark = g->stamp << PM_SHIFT;
     for (int k = 0; k < 3; k++) {
         /* The new triangles' box, rounded outward to floats. */
-        c.lo[k] = float_down((float)(c.r[k] + f->flo[k]));
-        c.hi[k] = float_up((float)(c.r[k] + f->fhi[k]));
+        c.lo[k] = tsl_float_down((float)(c.r[k] + f->flo[k]));
+        c.hi[k] = tsl_float_up((float)(c.r[k] + f->fhi[k]));
     }
     /* Marks first (a triangle needs all three vertices to pass), listing
      * the points that pass; R (not in its box) passes with every flag. */

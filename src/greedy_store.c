@@ -132,7 +132,14 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
     double c[3];
     pos(g, R, c);
     const int ad = g->ad, au = g->au, av = g->av;
-    double lo_d = c[ad] - half, hi_d = c[ad] + half;
+    /* Float bounds, widened by an ulp, reject most points outside the box
+     * before the exact double test (float rounding is monotone). */
+    const float *cf = g->xyz + 3 * (size_t)R;
+    const float hf = tsl_float_up((float)half);
+    const float lo_f = tsl_float_down((float)(c[ad] - half));
+    const float hi_f = tsl_float_up((float)(c[ad] + half));
+    const float cu = cf[au], cv = cf[av];
+    const double shell = core + 1e-6 * half;
     uint32_t iu0 = grid_coord(c[au] - half, g->glo[au], g->inv_cell, g->nu);
     uint32_t iu1 = grid_coord(c[au] + half, g->glo[au], g->inv_cell, g->nu);
     uint32_t iv0 = grid_coord(c[av] - half, g->glo[av], g->inv_cell, g->nv);
@@ -142,20 +149,20 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
         for (uint32_t iu = iu0; iu <= iu1; iu++) {
             size_t col = (size_t)iv * g->nu + iu;
             uint32_t s = g->col[col], e = g->col[col + 1];
-            if (s == e)
-                continue;
             uint32_t lo = s, hi = e;
             while (lo < hi) {
                 uint32_t mid = lo + (hi - lo) / 2;
-                if ((double)g->xyz[3 * (size_t)mid + ad] < lo_d)
+                if (g->xyz[3 * (size_t)mid + ad] < lo_f)
                     lo = mid + 1;
                 else
                     hi = mid;
             }
             for (uint32_t i = lo; i < e; i++) {
                 const float *p = g->xyz + 3 * (size_t)i;
-                if ((double)p[ad] > hi_d)
+                if (p[ad] > hi_f)
                     break;
+                if (fabsf(p[au] - cu) > hf || fabsf(p[av] - cv) > hf)
+                    continue;
                 /* Distance first: it needs only the coordinates at hand. */
                 double r0 = p[0] - c[0], r1 = p[1] - c[1], r2 = p[2] - c[2];
                 double a0 = fabs(r0), a1 = fabs(r1), a2 = fabs(r2);
@@ -164,12 +171,15 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
                 if (dinf > half || i == R)
                     continue;
                 int s_i = st(g, i);
-                if (s_i == ST_DEAD || (s_i == ST_DONE && g->head[i] == NONE))
+                if (s_i == ST_DEAD)
                     continue;
-                if (dinf > core && (g->head[i] == NONE ||
-                                    dinf - core > (double)g->maxe[i] * (1.0 + 1e-6) +
-                                                      1e-6 * half))
-                    continue;
+                if (s_i == ST_DONE || dinf > core) {
+                    uint32_t h = g->head[i];
+                    if (h == NONE && (s_i == ST_DONE || dinf > core))
+                        continue;
+                    if (dinf > core && dinf - shell > (double)g->maxe[i] * (1.0 + 1e-6))
+                        continue;
+                }
                 if (g->box_count == g->box_cap &&
                     grow((void **)&g->box, &g->box_cap, g->box_count + 1, sizeof *g->box))
                     return TESSEL_ERR_NOMEM;
@@ -617,14 +627,12 @@ static void enqueue(gp *g, uint32_t i)
     g->qcount++;
 }
 
-/* Links triangle (a, b, c) into the pool and the points' lists; counts
- * boundary edges and joins components. Fans are updated by the caller. */
+/* Links triangle (a, b, c) into the pool and the points' lists and joins
+ * components. Fans are updated by the caller. */
 tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int existing,
                              uint32_t *out)
 {
     uint32_t v[3] = {a, b, c};
-    for (int k = 0; k < 3; k++)
-        g->boundary_edges += tsl_gp_edge_exists(g, v[(k + 1) % 3], v[k]) ? -1 : 1;
     uint32_t t;
     tessel_status s = tri_alloc(g, &t);
     if (s != TESSEL_OK)
@@ -654,33 +662,33 @@ tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
     pos(g, a, pa);
     pos(g, b, pb);
     pos(g, c, pc);
-    double l2[3];
+    double l[3];
     tsl_sub(pa, pb, d);
-    l2[0] = tsl_dot(d, d); /* ab */
+    l[0] = sqrt(tsl_dot(d, d)); /* ab */
     tsl_sub(pb, pc, d);
-    l2[1] = tsl_dot(d, d); /* bc */
+    l[1] = sqrt(tsl_dot(d, d)); /* bc */
     tsl_sub(pc, pa, d);
-    l2[2] = tsl_dot(d, d); /* ca */
-    double e2 = dmax(l2[0], dmax(l2[1], l2[2]));
+    l[2] = sqrt(tsl_dot(d, d)); /* ca */
+    double lmax = dmax(l[0], dmax(l[1], l[2]));
     /* Rounded up so that it bounds the true length. */
-    float la = (float)(sqrt(dmax(l2[0], l2[2])) * (1.0 + 1e-6));
-    float lb = (float)(sqrt(dmax(l2[0], l2[1])) * (1.0 + 1e-6));
-    float lc = (float)(sqrt(dmax(l2[1], l2[2])) * (1.0 + 1e-6));
+    float la = (float)(dmax(l[0], l[2]) * (1.0 + 1e-6));
+    float lb = (float)(dmax(l[0], l[1]) * (1.0 + 1e-6));
+    float lc = (float)(dmax(l[1], l[2]) * (1.0 + 1e-6));
     if (la > g->maxe[a])
         g->maxe[a] = la;
     if (lb > g->maxe[b])
         g->maxe[b] = lb;
     if (lc > g->maxe[c])
         g->maxe[c] = lc;
-    if (e2 > g->ell * g->ell) {
+    if (lmax > g->ell) {
         g->tflag[t] |= TF_LONG;
         if ((s = long_register(g, t)) != TESSEL_OK)
             return s;
     } else {
-        float l = (float)(sqrt(e2) * (1.0 + 1e-6));
+        float lm = (float)(lmax * (1.0 + 1e-6));
         float *bl = &g->bmaxl[g->tblock[t]];
-        if (l > *bl)
-            *bl = l;
+        if (lm > *bl)
+            *bl = lm;
     }
     g->talive++;
     g->created_since_sweep++;
