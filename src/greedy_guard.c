@@ -11,6 +11,17 @@
 /* Exact: a, b, c collinear (a zero-area triangle). */
 int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3])
 {
+    /* Filter: a cross product component clearly away from zero (bound far
+     * above the rounding of the differences and products) settles it. */
+    double u[3], v[3];
+    tsl_sub(b, a, u);
+    tsl_sub(c, a, v);
+    for (int k = 0; k < 3; k++) {
+        int i = (k + 1) % 3, j = (k + 2) % 3;
+        double x = u[i] * v[j], y = u[j] * v[i];
+        if (fabs(x - y) > 1e-14 * (fabs(x) + fabs(y)))
+            return 0;
+    }
     const double *p[3] = {a, b, c};
     return tsl_triangle_degenerate(p);
 }

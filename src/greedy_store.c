@@ -138,7 +138,7 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
     const float hf = tsl_float_up((float)half);
     const float lo_f = tsl_float_down((float)(c[ad] - half));
     const float hi_f = tsl_float_up((float)(c[ad] + half));
-    const float cu = cf[au], cv = cf[av];
+    const float cu = cf[au], cv = cf[av], cd = cf[ad];
     const double shell = core + 1e-6 * half;
     uint32_t iu0 = grid_coord(c[au] - half, g->glo[au], g->inv_cell, g->nu);
     uint32_t iu1 = grid_coord(c[au] + half, g->glo[au], g->inv_cell, g->nu);
@@ -161,15 +161,14 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
                 const float *p = g->xyz + 3 * (size_t)i;
                 if (p[ad] > hi_f)
                     break;
-                if (fabsf(p[au] - cu) > hf || fabsf(p[av] - cv) > hf)
+                float du = fabsf(p[au] - cu), dv = fabsf(p[av] - cv), dd = fabsf(p[ad] - cd);
+                float df = du > dv ? du : dv;
+                df = df > dd ? df : dd;
+                /* df is the L-infinity distance rounded to float: a point
+                 * within half has df <= hf. */
+                if (df > hf || i == R)
                     continue;
-                /* Distance first: it needs only the coordinates at hand. */
-                double r0 = p[0] - c[0], r1 = p[1] - c[1], r2 = p[2] - c[2];
-                double a0 = fabs(r0), a1 = fabs(r1), a2 = fabs(r2);
-                double dinf = a0 > a1 ? a0 : a1;
-                dinf = dinf > a2 ? dinf : a2;
-                if (dinf > half || i == R)
-                    continue;
+                double dinf = (double)df;
                 int s_i = st(g, i);
                 if (s_i == ST_DEAD)
                     continue;
@@ -185,10 +184,10 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
                     return TESSEL_ERR_NOMEM;
                 gp_box *b = &g->box[g->box_count++];
                 b->idx = i;
-                b->dinf = (float)dinf;
-                b->rel[0] = r0;
-                b->rel[1] = r1;
-                b->rel[2] = r2;
+                b->dinf = df;
+                b->rel[0] = p[0] - c[0];
+                b->rel[1] = p[1] - c[1];
+                b->rel[2] = p[2] - c[2];
             }
         }
     }
