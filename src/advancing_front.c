@@ -114,6 +114,8 @@ typedef struct af {
     uint8_t *eroded; /* on a loop that erode() already enlarged */
     float *ln;       /* n*3 unit surface normal lines (sign not meaningful) */
     int8_t *vsign;   /* orientation of ln taken by the surface, 0 if unused */
+    const float *lines; /* n*3 second normal lines (caller's), may be NULL */
+    int8_t *vsign2;  /* orientation of lines taken by the surface */
     /* derived parameters */
     double cos_phi, theta0, theta_step, theta_max, cos_theta_max, eps1, cos_normal;
     double cos_closing_fold, cos_closing_normal, cos_last_fold;
@@ -419,6 +421,10 @@ static tessel_status add_triangle(af *s, uint32_t x, uint32_t y, uint32_t z, uin
         if (!s->vsign[v[i]]) {
             const float *l = s->ln + 3 * (size_t)v[i];
             s->vsign[v[i]] = n[0] * l[0] + n[1] * l[1] + n[2] * l[2] < 0.0 ? -1 : 1;
+            if (s->lines) {
+                l = s->lines + 3 * (size_t)v[i];
+                s->vsign2[v[i]] = n[0] * l[0] + n[1] * l[1] + n[2] * l[2] < 0.0 ? -1 : 1;
+            }
         }
     af_tinfo *info = &s->ti[t];
     for (int i = 0; i < 3; i++) {
@@ -779,21 +785,29 @@ static bool conflict(const af_tri *x, const double star[3][3], const uint32_t ev
     return tsl_triangles_intersect(x->v, px, ev, pe);
 }
 
+static bool agrees(const double n[3], const float *l, int sign, double cos_limit)
+{
+    double d = n[0] * l[0] + n[1] * l[1] + n[2] * l[2];
+    if (sign == 0)
+        d = fabs(d);
+    else if (sign < 0)
+        d = -d;
+    return d >= cos_limit;
+}
+
 /* The triangle's normal lies within the normal cone around each vertex's
  * surface normal, oriented as the surface took it (either way for a vertex
  * not yet on the surface). This keeps the front from folding back over
- * itself where noise lets folds pass the dihedral test (i). */
+ * itself where noise lets folds pass the dihedral test (i). With a second
+ * set of lines (the pipeline's: the normals of the robust fit at each
+ * representative, local where the plane of its k nearest representatives
+ * spans a tip or a narrow part), agreeing with either line is enough. */
 static bool normals_agree(const af *s, const af_tri *x, double cos_limit)
 {
     for (int i = 0; i < 3; i++) {
-        const float *l = s->ln + 3 * (size_t)x->v[i];
-        double d = x->n[0] * l[0] + x->n[1] * l[1] + x->n[2] * l[2];
-        int sign = s->vsign[x->v[i]];
-        if (sign == 0)
-            d = fabs(d);
-        else if (sign < 0)
-            d = -d;
-        if (d < cos_limit)
+        uint32_t v = x->v[i];
+        if (!agrees(x->n, s->ln + 3 * (size_t)v, s->vsign[v], cos_limit) &&
+            !(s->lines && agrees(x->n, s->lines + 3 * (size_t)v, s->vsign2[v], cos_limit)))
             return false;
     }
     return true;
@@ -1428,6 +1442,7 @@ static void af_free(af *s)
     free(s->cos_level);
     free(s->ln);
     free(s->vsign);
+    free(s->vsign2);
     free(s->tri);
     free(s->ti);
     free(s->cnext);
@@ -2081,6 +2096,14 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
                                      const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                      tessel_front_stats *stats)
 {
+    return tsl_advancing_front_lines(points, NULL, params, callbacks, mesh, stats);
+}
+
+tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float *lines,
+                                        const tessel_front_params *params,
+                                        const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                        tessel_front_stats *stats)
+{
     if (!mesh)
         return TESSEL_ERR_INVALID_ARG;
     memset(mesh, 0, sizeof *mesh);
@@ -2105,6 +2128,7 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
     memset(&s, 0, sizeof s);
     s.xyz = points->xyz;
     s.pnormals = points->normals;
+    s.lines = lines;
     s.n = points->count;
     s.k = p.k < s.n - 1 ? p.k : (uint32_t)(s.n - 1);
     const double deg = acos(-1.0) / 180.0;
@@ -2136,11 +2160,12 @@ tessel_status tessel_advancing_front(const tessel_cloud *points,
     s.seen = tsl_calloc_array(s.n, sizeof *s.seen);
     s.star = tsl_calloc_array(3 * s.n, sizeof *s.star);
     s.eroded = tsl_calloc_array(s.n, sizeof *s.eroded);
+    s.vsign2 = tsl_calloc_array(s.n, sizeof *s.vsign2);
     size_t levels = (size_t)ceil((s.theta_max - s.theta0) / s.theta_step) + 2;
     s.cos_level = tsl_alloc_array(levels, sizeof *s.cos_level);
     st = TESSEL_ERR_NOMEM;
     if (!s.tri || !s.ti || !s.cnext || !s.vhead || !s.vin || !s.vout || !s.seen || !s.star ||
-        !s.eroded || !s.cos_level)
+        !s.eroded || !s.vsign2 || !s.cos_level)
         goto fail;
     /* Level j admits normals turned by up to theta0 + j eps2 (capped at
      * theta_max, which the candidate search enforces). */

@@ -153,6 +153,15 @@ bool tsl_triangle_degenerate(const double *p[3]);
 bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const uint32_t ib[3],
                              const double *pb[3]);
 
+/* tessel_advancing_front with a second set of unit normal lines (count*3
+ * floats, sign not meaningful; NULL: none): a new triangle's normal may
+ * agree with either line at each vertex (src/advancing_front.c; the
+ * pipeline passes the robust fit's normals of the representatives). */
+tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float *lines,
+                                        const tessel_front_params *params,
+                                        const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                        tessel_front_stats *stats);
+
 /* ---- neighbour search (src/kdtree.c) ---- */
 
 /* Writes the index's count point indices in its storage order (leaf by

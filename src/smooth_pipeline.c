@@ -192,14 +192,19 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
         goto fail;
     }
     /* Normals whose sign is arbitrary would orient open components at
-     * random: let the triangulation fit its own then. */
+     * random: then they serve only as second normal lines of the
+     * triangulation's normal cone (next to the planes it fits to the
+     * representatives, which are poor at tips and narrow parts). */
+    float *lines = NULL;
     if (!cloud->normals && !cloud->has_viewpoint) {
-        free(reps.normals);
+        lines = reps.normals;
         reps.normals = NULL;
     }
 
     t = now();
-    if ((st = tessel_advancing_front(&reps, &p.front, callbacks, mesh, &s.front)))
+    st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, mesh, &s.front);
+    free(lines);
+    if (st)
         goto fail;
     if ((st = compact(mesh)))
         goto fail;
