@@ -535,8 +535,7 @@ static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
     g->cand_count = 0;
     for (size_t k = 0; k < g->box_count; k++) {
         const gp_box *x = &g->box[k];
-        if (((double)x->dinf > skip && x->idx != req_a && x->idx != req_b) ||
-            !is_live(g, x->idx))
+        if ((double)x->dinf > skip && x->idx != req_a && x->idx != req_b)
             continue;
         double d2 = tsl_dot(x->rel, x->rel);
         if (d2 == 0.0)
@@ -552,7 +551,7 @@ static tessel_status gather(gp *g, double b, double m0, double mu, gp_frame *f,
         m = sqrt(dmin2);
     if (m < g->m_floor)
         m = g->m_floor;
-    f->rho = fmin(mu * m, g->rho_cap);
+    f->rho = dmin(mu * m, g->rho_cap);
     double rho2 = f->rho * f->rho;
     f->reach = f->rho;
     size_t w = 0;
@@ -590,7 +589,7 @@ static tessel_status process_pass(gp *g, uint32_t R, double scale)
         if (tsl_normalize(nn))
             for (int q = 0; q < 3; q++)
                 nsum[q] += nn[q];
-        m0 = fmin(m0, fmin(tsl_dot(da, da), tsl_dot(db, db)));
+        m0 = dmin(m0, dmin(tsl_dot(da, da), tsl_dot(db, db)));
         t = T->next[k];
     }
     m0 = sqrt(m0);
@@ -606,8 +605,8 @@ static tessel_status process_pass(gp *g, uint32_t R, double scale)
     double re = tsl_norm(d);
     tsl_sub(ps, pr, d);
     double rs = tsl_norm(d);
-    double b = fmin(scale * g->mu * m0, g->rho_cap);
-    double core = fmax(b, fmax(re, rs));
+    double b = dmin(scale * g->mu * m0, g->rho_cap);
+    double core = dmax(b, dmax(re, rs));
     f.delta = tsl_gp_local_delta(g, R, core);
     tessel_status st_ = tsl_gp_scan_box(g, R, core + f.delta, core);
     if (st_ != TESSEL_OK)
@@ -677,15 +676,15 @@ static void fan_normal(const gp *g, uint32_t p, double n[3])
  * The triangles around it are those at points within `reach` that lie near
  * the seed's tangent plane (within 27 degrees): points of a facing sheet (a
  * hand beside a thigh) lie along the normal and would flip the seed. Nearer
- * points weigh more. Uses g->box. */
+ * points weigh more. Uses g->box and g->boxd. */
 static tessel_status orient_seed(gp *g, uint32_t R, double n[3], double reach)
 {
     double ref[3] = {0, 0, 0};
     tessel_status s = tsl_gp_scan_box(g, R, reach, reach);
     if (s != TESSEL_OK)
         return s;
-    for (size_t i = 0; i < g->box_count; i++) {
-        const gp_box *b = &g->box[i];
+    for (size_t i = 0; i < g->box_count + g->boxd_count; i++) {
+        const gp_box *b = i < g->box_count ? &g->box[i] : &g->boxd[i - g->box_count];
         if (g->head[b->idx] == NONE)
             continue;
         double d2 = tsl_dot(b->rel, b->rel), h = tsl_dot(b->rel, n);
@@ -747,8 +746,7 @@ static tessel_status seed(gp *g, uint32_t R)
     if ((s = gather(g, b, m, g->mu, &f, NONE, NONE)) != TESSEL_OK)
         return s;
     size_t done_near = 0;
-    for (size_t k = 0; k < g->box_count; k++)
-        done_near += st(g, g->box[k].idx) == ST_DONE;
+    done_near = g->boxd_count;
     /* Fewer than SEED_MIN neighbours make a splinter, not a surface. */
     if (g->cand_count < SEED_MIN || !pca_normal(g->cand, g->cand_count, f.n)) {
         settle_dead(g, R, done_near ? &g->sum.left_closed_in : &g->sum.left_untriangulated);

@@ -182,7 +182,7 @@ static inline tessel_status collect_point(gp *g, const gp_gctx *c, uint32_t v, u
 /* Collects the held triangles that a new triangle in the box [flo, fhi]
  * (within f->reach of R) could meet and that the cone does not rule out.
  * A triangle whose edges are at most ell and that meets the box of
- * half-size reach has a vertex within delta of it, so in g->box; longer
+ * half-size reach has a vertex within delta of it, so in the box; longer
  * triangles are in the long-triangle grid. Each triangle is looked at once:
  * from the first of its vertices that lists its triangles (in the box, or
  * R) and passes point_test; the others must pass too. */
@@ -232,21 +232,25 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     }
     /* Marks first (a triangle needs all three vertices to pass), listing
      * the points that pass; R (not in its box) passes with every flag. */
-    if (grow((void **)&g->gpass, &g->gpass_cap, g->box_count + 1, sizeof *g->gpass))
+    if (grow((void **)&g->gpass, &g->gpass_cap, g->box_count + g->boxd_count + 1,
+             sizeof *g->gpass))
         return TESSEL_ERR_NOMEM;
     uint32_t *pass = g->gpass;
     size_t np = 0;
     g->pmark[R] = c.mark | PM_LISTS | PM_PASS | PM_FLAGS;
     pass[np++] = R;
-    for (size_t k = 0; k < g->box_count; k++) {
-        const gp_box *b = &g->box[k];
-        uint32_t v = b->idx;
-        if (g->head[v] == NONE)
-            continue;
-        unsigned m = point_test(g, &c, v, b->rel);
-        g->pmark[v] = c.mark | PM_LISTS | m;
-        if (m)
-            pass[np++] = v;
+    for (int part = 0; part < 2; part++) {
+        const gp_box *box = part ? g->boxd : g->box;
+        size_t count = part ? g->boxd_count : g->box_count;
+        for (size_t k = 0; k < count; k++) {
+            uint32_t v = box[k].idx;
+            if (g->head[v] == NONE)
+                continue;
+            unsigned m = point_test(g, &c, v, box[k].rel);
+            g->pmark[v] = c.mark | PM_LISTS | m;
+            if (m)
+                pass[np++] = v;
+        }
     }
     tessel_status s;
     for (size_t i = 0; i < np; i++) {

@@ -161,8 +161,10 @@ typedef struct gp {
     size_t out_count;
 
     /* per-reference scratch */
-    gp_box *box;
+    gp_box *box;          /* the scanned box: live points */
     size_t box_count, box_cap;
+    gp_box *boxd;         /* and completed points with triangles */
+    size_t boxd_count, boxd_cap;
     gp_cand *cand;
     size_t cand_count, cand_cap;
     uint32_t *seq;
@@ -317,9 +319,10 @@ void tsl_gp_free(gp *g);
 /* Imports params->existing (TESSEL_ERR_INVALID_ARG if not a manifold,
  * consistently oriented mesh). */
 tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count);
-/* Points other than R, not dead, in the box of half-size half around R,
- * into g->box; beyond core (<= half) only points with triangles within
- * their longest edge of the box of half-size core. */
+/* Points other than R, not dead, in the box of half-size half around R:
+ * live ones into g->box, completed ones into g->boxd; beyond core (<= half)
+ * only points with triangles within their longest edge of the box of
+ * half-size core. */
 tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core);
 /* Distance from point i to its nearest point (live ones only if
  * live_only) with boxes doubling from start up to limit; INFINITY if none. */

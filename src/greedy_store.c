@@ -121,7 +121,8 @@ static tessel_status build_dexels(gp *g, const double ext[3], double cell)
     return TESSEL_OK;
 }
 
-/* Collects into g->box every point other than R that is not dead and lies
+/* Collects into g->box (live) and g->boxd (completed) every point other
+ * than R that is not dead and lies
  * in the axis-aligned box of half-size `half` around R (section 4.1, first
  * stage of the distance criterion). Completed points whose triangles have
  * all left memory cost nothing further. Beyond `core` (<= half) only points
@@ -144,7 +145,7 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
     uint32_t iu1 = grid_coord(c[au] + half, g->glo[au], g->inv_cell, g->nu);
     uint32_t iv0 = grid_coord(c[av] - half, g->glo[av], g->inv_cell, g->nv);
     uint32_t iv1 = grid_coord(c[av] + half, g->glo[av], g->inv_cell, g->nv);
-    g->box_count = 0;
+    g->box_count = g->boxd_count = 0;
     for (uint32_t iv = iv0; iv <= iv1; iv++) {
         for (uint32_t iu = iu0; iu <= iu1; iu++) {
             size_t col = (size_t)iv * g->nu + iu;
@@ -179,10 +180,18 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
                     if (dinf > core && dinf - shell > (double)g->maxe[i] * (1.0 + 1e-6))
                         continue;
                 }
-                if (g->box_count == g->box_cap &&
-                    grow((void **)&g->box, &g->box_cap, g->box_count + 1, sizeof *g->box))
-                    return TESSEL_ERR_NOMEM;
-                gp_box *b = &g->box[g->box_count++];
+                gp_box *b;
+                if (s_i == ST_DONE) {
+                    if (g->boxd_count == g->boxd_cap &&
+                        grow((void **)&g->boxd, &g->boxd_cap, g->boxd_count + 1, sizeof *b))
+                        return TESSEL_ERR_NOMEM;
+                    b = &g->boxd[g->boxd_count++];
+                } else {
+                    if (g->box_count == g->box_cap &&
+                        grow((void **)&g->box, &g->box_cap, g->box_count + 1, sizeof *b))
+                        return TESSEL_ERR_NOMEM;
+                    b = &g->box[g->box_count++];
+                }
                 b->idx = i;
                 b->dinf = df;
                 b->rel[0] = p[0] - c[0];
@@ -209,10 +218,9 @@ tessel_status tsl_gp_nearest(gp *g, uint32_t i, int live_only, double start, dou
         if (s != TESSEL_OK)
             return s;
         double best = INFINITY;
-        for (size_t k = 0; k < g->box_count; k++) {
-            const gp_box *b = &g->box[k];
-            if (live_only && !is_live(g, b->idx))
-                continue;
+        size_t nb = g->box_count + (live_only ? 0 : g->boxd_count);
+        for (size_t k = 0; k < nb; k++) {
+            const gp_box *b = k < g->box_count ? &g->box[k] : &g->boxd[k - g->box_count];
             double d2 = tsl_dot(b->rel, b->rel);
             if (d2 > 0.0 && d2 < best)
                 best = d2;
@@ -776,6 +784,7 @@ void tsl_gp_free(gp *g)
     free(g->uf);
     free(g->out);
     free(g->box);
+    free(g->boxd);
     free(g->cand);
     free(g->seq);
     free(g->gt);
@@ -976,8 +985,8 @@ tessel_status tsl_gp_init(gp *g)
             double x = src[3 * i + (size_t)k];
             if (!isfinite(x))
                 return TESSEL_ERR_INVALID_ARG;
-            lo[k] = fmin(lo[k], x);
-            hi[k] = fmax(hi[k], x);
+            lo[k] = dmin(lo[k], x);
+            hi[k] = dmax(hi[k], x);
         }
     /* The arrays cover a robust extent: from the 0.1% to the 99.9%
      * quantile of a sample, widened by 5%. Points beyond land in the border
