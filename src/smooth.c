@@ -31,7 +31,7 @@
  * on the previous pass's positions, so points are independent: OpenMP
  * loops with per-point output slots give the same bits for any thread
  * count. */
-#include "internal.h"
+#include "grid.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -767,213 +767,7 @@ tessel_status tessel_project(const tessel_projector *pr, const float q[3], float
     return fit ? TESSEL_OK : TESSEL_ERR_TOO_FEW_POINTS;
 }
 
-/* ---- the grid of a smoothing pass ---- */
-
-/* Points sorted by cell (Morton order of the cell coordinates, so nearby
- * cells are near in memory), each cell a run. */
-typedef struct cell_grid {
-    double origin[3];
-    double c; /* cell size */
-    uint32_t dims[3];
-    size_t n, ncell;
-    uint32_t *perm;  /* sorted position -> point index */
-    float *sxyz;     /* n*3 coordinates in sorted order */
-    uint64_t *key;   /* ncell cell keys, increasing */
-    uint32_t *start; /* ncell + 1 run starts */
-    uint32_t *slot;  /* open-addressing hash: key -> cell, or
-                        UINT32_MAX; hmask + 1 slots */
-    size_t hmask;
-} cell_grid;
-
-static void grid_free(cell_grid *g)
-{
-    free(g->perm);
-    free(g->sxyz);
-    free(g->key);
-    free(g->start);
-    free(g->slot);
-    memset(g, 0, sizeof *g);
-}
-
-static uint64_t spread21(uint32_t v)
-{
-    uint64_t x = v & 0x1fffffu;
-    x = (x | x << 32) & 0x1f00000000ffffull;
-    x = (x | x << 16) & 0x1f0000ff0000ffull;
-    x = (x | x << 8) & 0x100f00f00f00f00full;
-    x = (x | x << 4) & 0x10c30c30c30c30c3ull;
-    x = (x | x << 2) & 0x1249249249249249ull;
-    return x;
-}
-static inline uint64_t morton(uint32_t x, uint32_t y, uint32_t z)
-{
-    return spread21(x) | spread21(y) << 1 | spread21(z) << 2;
-}
-
-static inline uint32_t cell_of(const cell_grid *g, const float *p, int axis)
-{
-    double v = floor((p[axis] - g->origin[axis]) / g->c);
-    if (v < 0.0)
-        v = 0.0;
-    if (v > (double)(g->dims[axis] - 1))
-        v = (double)(g->dims[axis] - 1);
-    return (uint32_t)v;
-}
-
-static inline size_t hash_key(uint64_t key)
-{
-    return (size_t)((key * 0x9E3779B97F4A7C15ull) >> 32);
-}
-
-/* Sorts the points by cell with a stable LSD radix sort on the Morton key
- * (only the bytes in use), so equal cells keep increasing point order. */
-static tessel_status grid_build(cell_grid *g, const float *xyz, size_t n, double cell,
-                                int threads)
-{
-    memset(g, 0, sizeof *g);
-    /* Minima and maxima are exact: any thread count gives the same box. */
-    float lx = INFINITY, ly = INFINITY, lz = INFINITY, hx = -INFINITY, hy = -INFINITY,
-          hz = -INFINITY;
-    (void)threads;
-#ifdef _OPENMP
-#pragma omp parallel for num_threads(threads) schedule(static) \
-    reduction(min : lx, ly, lz) reduction(max : hx, hy, hz)
-#endif
-    for (size_t i = 0; i < n; i++) {
-        const float *q = xyz + 3 * i;
-        lx = q[0] < lx ? q[0] : lx, ly = q[1] < ly ? q[1] : ly, lz = q[2] < lz ? q[2] : lz;
-        hx = q[0] > hx ? q[0] : hx, hy = q[1] > hy ? q[1] : hy, hz = q[2] > hz ? q[2] : hz;
-    }
-    double lo[3] = {lx, ly, lz}, hi[3] = {hx, hy, hz};
-    /* 21 bits per axis; a coarser grid is still exact, only slower. */
-    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
-    if (ext / cell > 2000000.0)
-        cell = ext / 2000000.0;
-    g->c = cell;
-    uint32_t maxdim = 1;
-    for (int a = 0; a < 3; a++) {
-        g->origin[a] = lo[a];
-        g->dims[a] = (uint32_t)floor((hi[a] - lo[a]) / cell) + 1;
-        maxdim = g->dims[a] > maxdim ? g->dims[a] : maxdim;
-    }
-    int bits = 1;
-    while (bits < 21 && (1u << bits) < maxdim)
-        bits++;
-    int passes = (3 * bits + 7) / 8;
-    g->n = n;
-
-    uint64_t *k0 = tsl_alloc_array(n, sizeof *k0), *k1 = tsl_alloc_array(n, sizeof *k1);
-    uint32_t *i0 = tsl_alloc_array(n, sizeof *i0), *i1 = tsl_alloc_array(n, sizeof *i1);
-    g->sxyz = tsl_alloc_array(n, 3 * sizeof(float));
-    tessel_status st = TESSEL_ERR_NOMEM;
-    if (!k0 || !k1 || !i0 || !i1 || !g->sxyz)
-        goto done;
-#ifdef _OPENMP
-#pragma omp parallel for num_threads(threads) schedule(static)
-#endif
-    for (size_t i = 0; i < n; i++) {
-        const float *p = xyz + 3 * i;
-        k0[i] = morton(cell_of(g, p, 0), cell_of(g, p, 1), cell_of(g, p, 2));
-        i0[i] = (uint32_t)i;
-    }
-    for (int pass = 0; pass < passes; pass++) {
-        size_t count[257] = {0};
-        int sh = 8 * pass;
-        for (size_t i = 0; i < n; i++)
-            count[((k0[i] >> sh) & 0xff) + 1]++;
-        for (int b = 0; b < 256; b++)
-            count[b + 1] += count[b];
-        for (size_t i = 0; i < n; i++) {
-            size_t dst = count[(k0[i] >> sh) & 0xff]++;
-            k1[dst] = k0[i];
-            i1[dst] = i0[i];
-        }
-        uint64_t *tk = k0;
-        k0 = k1, k1 = tk;
-        uint32_t *ti = i0;
-        i0 = i1, i1 = ti;
-    }
-    size_t ncell = 0;
-    for (size_t i = 0; i < n; i++)
-        ncell += i == 0 || k0[i] != k0[i - 1];
-    g->key = tsl_alloc_array(ncell, sizeof *g->key);
-    g->start = tsl_alloc_array(ncell + 1, sizeof *g->start);
-    if (!g->key || !g->start)
-        goto done;
-    size_t c = 0;
-    for (size_t i = 0; i < n; i++) {
-        if (i == 0 || k0[i] != k0[i - 1]) {
-            g->key[c] = k0[i];
-            g->start[c++] = (uint32_t)i;
-        }
-        memcpy(g->sxyz + 3 * i, xyz + 3 * (size_t)i0[i], 3 * sizeof(float));
-    }
-    g->start[ncell] = (uint32_t)n;
-    g->ncell = ncell;
-    /* Cell lookups by hashing: a quarter full at most. */
-    size_t slots = 64;
-    while (slots < 4 * ncell)
-        slots *= 2;
-    g->slot = tsl_alloc_array(slots, sizeof *g->slot);
-    if (!g->slot)
-        goto done;
-    memset(g->slot, 0xff, slots * sizeof *g->slot);
-    g->hmask = slots - 1;
-    for (size_t i = 0; i < ncell; i++) {
-        size_t h = hash_key(g->key[i]) & g->hmask;
-        while (g->slot[h] != UINT32_MAX)
-            h = (h + 1) & g->hmask;
-        g->slot[h] = (uint32_t)i;
-    }
-    g->perm = i0;
-    i0 = NULL;
-    st = TESSEL_OK;
-done:
-    free(k0);
-    free(k1);
-    free(i0);
-    free(i1);
-    if (st != TESSEL_OK)
-        grid_free(g);
-    return st;
-}
-
-/* Index of the cell with this key, or SIZE_MAX when it is empty. */
-static size_t grid_find(const cell_grid *g, uint64_t key)
-{
-    for (size_t h = hash_key(key) & g->hmask;; h = (h + 1) & g->hmask) {
-        uint32_t c = g->slot[h];
-        if (c == UINT32_MAX)
-            return SIZE_MAX;
-        if (g->key[c] == key)
-            return c;
-    }
-}
-
-/* Runs of the cells at Chebyshev distance `ring` (0 or 1) from cell cc,
- * appended to run[] (pairs of sorted positions). */
-static size_t grid_ring(const cell_grid *g, const uint32_t cc[3], int ring, uint32_t *run,
-                        size_t nrun)
-{
-    for (int dx = -ring; dx <= ring; dx++)
-        for (int dy = -ring; dy <= ring; dy++)
-            for (int dz = -ring; dz <= ring; dz++) {
-                if (abs(dx) != ring && abs(dy) != ring && abs(dz) != ring)
-                    continue;
-                int64_t x = (int64_t)cc[0] + dx, y = (int64_t)cc[1] + dy,
-                        z = (int64_t)cc[2] + dz;
-                if (x < 0 || y < 0 || z < 0 || x >= g->dims[0] || y >= g->dims[1] ||
-                    z >= g->dims[2])
-                    continue;
-                size_t ci = grid_find(g, morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
-                if (ci == SIZE_MAX)
-                    continue;
-                run[2 * nrun] = g->start[ci];
-                run[2 * nrun + 1] = g->start[ci + 1];
-                nrun++;
-            }
-    return nrun;
-}
+/* ---- neighbour search on the grid (src/grid.c) ---- */
 
 /* The k nearest within the cut-off, sorted by (distance, index) as the
  * kd-tree orders them. */
@@ -1018,7 +812,7 @@ static inline float dist2(const float *p, const float *q)
 }
 
 /* Offers every point of the runs to t. */
-static void topk_scan(topk *t, const cell_grid *g, const float *q, const uint32_t *run,
+static void topk_scan(topk *t, const tsl_grid *g, const float *q, const uint32_t *run,
                       size_t nrun, float r2max)
 {
     for (size_t r = 0; r < nrun; r++)
@@ -1029,28 +823,9 @@ static void topk_scan(topk *t, const cell_grid *g, const float *q, const uint32_
         }
 }
 
-/* Squared distance from q to the box of cell (x, y, z), in float like the
- * point distances, rounded down a little so that it never exceeds the
- * float distance of a point inside. */
-static inline float cell_box_d2(const cell_grid *g, const float *q, int64_t x, int64_t y,
-                                int64_t z)
-{
-    int64_t c[3] = {x, y, z};
-    double s = 0.0;
-    for (int a = 0; a < 3; a++) {
-        double lo = g->origin[a] + (double)c[a] * g->c, hi = lo + g->c, e = 0.0;
-        if (q[a] < lo)
-            e = lo - q[a];
-        else if (q[a] > hi)
-            e = q[a] - hi;
-        s += e * e;
-    }
-    return (float)(s * (1.0 - 1e-5));
-}
-
 /* Offers to t every point of the cells at Chebyshev distance ring (>= 2)
  * from cell cc that can still hold one of the k nearest. */
-static void topk_ring(topk *t, const cell_grid *g, const float *q, const uint32_t cc[3],
+static void topk_ring(topk *t, const tsl_grid *g, const float *q, const uint32_t cc[3],
                       int64_t ring, float r2max)
 {
     for (int64_t dx = -ring; dx <= ring; dx++) {
@@ -1068,9 +843,9 @@ static void topk_ring(topk *t, const cell_grid *g, const float *q, const uint32_
                 if (z < 0 || z >= g->dims[2])
                     continue;
                 float worst = t->cnt == t->k ? t->d[t->cnt - 1] : r2max;
-                if (cell_box_d2(g, q, x, y, z) > worst)
+                if (tsl_grid_box_d2(g, q, x, y, z) > worst)
                     continue;
-                size_t ci = grid_find(g, morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
+                size_t ci = tsl_grid_find(g, tsl_morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
                 if (ci == SIZE_MAX)
                     continue;
                 uint32_t run[2] = {g->start[ci], g->start[ci + 1]};
@@ -1107,7 +882,7 @@ static inline uint32_t float_bits(float f)
 }
 
 /* Point index of a selection key's block slot. */
-static inline uint32_t block_id(const block *b, const cell_grid *g, uint64_t key)
+static inline uint32_t block_id(const block *b, const tsl_grid *g, uint64_t key)
 {
     return g->perm[b->pos[(uint32_t)key]];
 }
@@ -1146,7 +921,7 @@ static inline size_t block_select(block *b, size_t m, int32_t tb)
  * *guess) picks a few; they are sorted as 64-bit keys (distance bits, which
  * order like the distances since they are >= 0, then block slot), equal
  * distances reordered by point index, and the first k kept. */
-TSL_CLONES static void topk_block(topk *t, block *b, const cell_grid *g, const float *q, float r2max,
+TSL_CLONES static void topk_block(topk *t, block *b, const tsl_grid *g, const float *q, float r2max,
                        float *guess)
 {
     const size_t m = b->m;
@@ -1281,7 +1056,7 @@ TSL_CLONES static void topk_block(topk *t, block *b, const cell_grid *g, const f
  * the neighbours of nearby points are nearby in memory. */
 typedef struct pass_ctx {
     const fit_ctl *f;
-    const cell_grid *g;
+    const tsl_grid *g;
     const float *cur_xyz;  /* positions this pass reads, by sorted position */
     const float *ref_nrm;  /* orientation reference by sorted position, or
                               NULL */
@@ -1312,7 +1087,7 @@ static void count_fit(pass_count *c, bool fit, uint32_t its, uint32_t max_iterat
  * scratch. */
 TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pass_count *pc)
 {
-    const cell_grid *g = x->g;
+    const tsl_grid *g = x->g;
     const fit_ctl *f = x->f;
     uint32_t run1[2 * 27];
     size_t n1 = 0;
@@ -1322,9 +1097,9 @@ TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, siz
     uint32_t cc[3];
     const float *first = g->sxyz + 3 * (size_t)g->start[ci];
     for (int a = 0; a < 3; a++)
-        cc[a] = cell_of(g, first, a);
-    n1 = grid_ring(g, cc, 0, run1, 0);
-    n1 = grid_ring(g, cc, 1, run1, n1);
+        cc[a] = tsl_grid_cell(g, first, a);
+    n1 = tsl_grid_ring(g, cc, 0, run1, 0);
+    n1 = tsl_grid_ring(g, cc, 1, run1, n1);
     size_t m = 0;
     for (size_t r = 0; r < n1; r++)
         m += run1[2 * r + 1] - run1[2 * r];
@@ -1445,7 +1220,7 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     f_later.ridge = 0.0; /* see QUAD_RIDGE */
 
     const size_t n = cloud->count;
-    cell_grid g;
+    tsl_grid g;
     memset(&g, 0, sizeof g);
     float *buf[4] = {NULL, NULL, NULL, NULL}; /* xyz a, xyz b, normals a, b */
     uint32_t *nb = NULL;
@@ -1485,14 +1260,14 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
      * density (a surface crosses cells of side c with about 2/3 c^2 of its
      * area each), hence that distance. */
     double cell = fmin(3.0 * h * sqrt((double)p.k / 24.0), f_first.rmax);
-    st = grid_build(&g, cloud->xyz, n, cell, threads);
+    st = tsl_grid_build(&g, cloud->xyz, n, cell, threads);
     if (st == TESSEL_OK) {
         double m = (double)n / (double)g.ncell;
         double rk = g.c * sqrt((double)p.k * (2.0 / 3.0) / (3.141592653589793 * m));
         rk = fmin(1.3 * rk, f_first.rmax);
         if (fabs(rk - g.c) > 0.15 * g.c) {
-            grid_free(&g);
-            st = grid_build(&g, cloud->xyz, n, rk, threads);
+            tsl_grid_free(&g);
+            st = tsl_grid_build(&g, cloud->xyz, n, rk, threads);
         }
     }
     if (st != TESSEL_OK)
@@ -1618,7 +1393,7 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     memset(&res, 0, sizeof res);
 
 done:
-    grid_free(&g);
+    tsl_grid_free(&g);
     for (int i = 0; i < 4; i++)
         free(buf[i]);
     free(nb);

@@ -1,0 +1,155 @@
+/* A uniform grid of points sorted by cell: the neighbour structure of the
+ * smoothing passes (src/smooth.c), which serve all the points of a cell
+ * from the runs of the cells around it. Building it is a radix sort,
+ * linear in the number of points. Declarations and the small inline
+ * helpers are in src/grid.h. */
+#include "grid.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+void tsl_grid_free(tsl_grid *g)
+{
+    free(g->perm);
+    free(g->sxyz);
+    free(g->key);
+    free(g->start);
+    free(g->slot);
+    memset(g, 0, sizeof *g);
+}
+
+/* Sorts the points by cell with a stable LSD radix sort on the Morton key
+ * (only the bytes in use), so equal cells keep increasing point order. */
+tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cell,
+                             int threads)
+{
+    memset(g, 0, sizeof *g);
+    /* Minima and maxima are exact: any thread count gives the same box. */
+    float lx = INFINITY, ly = INFINITY, lz = INFINITY, hx = -INFINITY, hy = -INFINITY,
+          hz = -INFINITY;
+    (void)threads;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(threads) schedule(static) \
+    reduction(min : lx, ly, lz) reduction(max : hx, hy, hz)
+#endif
+    for (size_t i = 0; i < n; i++) {
+        const float *q = xyz + 3 * i;
+        lx = q[0] < lx ? q[0] : lx, ly = q[1] < ly ? q[1] : ly, lz = q[2] < lz ? q[2] : lz;
+        hx = q[0] > hx ? q[0] : hx, hy = q[1] > hy ? q[1] : hy, hz = q[2] > hz ? q[2] : hz;
+    }
+    double lo[3] = {lx, ly, lz}, hi[3] = {hx, hy, hz};
+    /* 21 bits per axis; a coarser grid is still exact, only slower. */
+    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    if (ext / cell > 2000000.0)
+        cell = ext / 2000000.0;
+    g->c = cell;
+    uint32_t maxdim = 1;
+    for (int a = 0; a < 3; a++) {
+        g->origin[a] = lo[a];
+        g->dims[a] = (uint32_t)floor((hi[a] - lo[a]) / cell) + 1;
+        maxdim = g->dims[a] > maxdim ? g->dims[a] : maxdim;
+    }
+    int bits = 1;
+    while (bits < 21 && (1u << bits) < maxdim)
+        bits++;
+    int passes = (3 * bits + 7) / 8;
+    g->n = n;
+
+    uint64_t *k0 = tsl_alloc_array(n, sizeof *k0), *k1 = tsl_alloc_array(n, sizeof *k1);
+    uint32_t *i0 = tsl_alloc_array(n, sizeof *i0), *i1 = tsl_alloc_array(n, sizeof *i1);
+    g->sxyz = tsl_alloc_array(n, 3 * sizeof(float));
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!k0 || !k1 || !i0 || !i1 || !g->sxyz)
+        goto done;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(threads) schedule(static)
+#endif
+    for (size_t i = 0; i < n; i++) {
+        const float *p = xyz + 3 * i;
+        k0[i] = tsl_morton(tsl_grid_cell(g, p, 0), tsl_grid_cell(g, p, 1), tsl_grid_cell(g, p, 2));
+        i0[i] = (uint32_t)i;
+    }
+    for (int pass = 0; pass < passes; pass++) {
+        size_t count[257] = {0};
+        int sh = 8 * pass;
+        for (size_t i = 0; i < n; i++)
+            count[((k0[i] >> sh) & 0xff) + 1]++;
+        for (int b = 0; b < 256; b++)
+            count[b + 1] += count[b];
+        for (size_t i = 0; i < n; i++) {
+            size_t dst = count[(k0[i] >> sh) & 0xff]++;
+            k1[dst] = k0[i];
+            i1[dst] = i0[i];
+        }
+        uint64_t *tk = k0;
+        k0 = k1, k1 = tk;
+        uint32_t *ti = i0;
+        i0 = i1, i1 = ti;
+    }
+    size_t ncell = 0;
+    for (size_t i = 0; i < n; i++)
+        ncell += i == 0 || k0[i] != k0[i - 1];
+    g->key = tsl_alloc_array(ncell, sizeof *g->key);
+    g->start = tsl_alloc_array(ncell + 1, sizeof *g->start);
+    if (!g->key || !g->start)
+        goto done;
+    size_t c = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (i == 0 || k0[i] != k0[i - 1]) {
+            g->key[c] = k0[i];
+            g->start[c++] = (uint32_t)i;
+        }
+        memcpy(g->sxyz + 3 * i, xyz + 3 * (size_t)i0[i], 3 * sizeof(float));
+    }
+    g->start[ncell] = (uint32_t)n;
+    g->ncell = ncell;
+    /* Cell lookups by hashing: a quarter full at most. */
+    size_t slots = 64;
+    while (slots < 4 * ncell)
+        slots *= 2;
+    g->slot = tsl_alloc_array(slots, sizeof *g->slot);
+    if (!g->slot)
+        goto done;
+    memset(g->slot, 0xff, slots * sizeof *g->slot);
+    g->hmask = slots - 1;
+    for (size_t i = 0; i < ncell; i++) {
+        size_t h = tsl_grid_hash(g->key[i]) & g->hmask;
+        while (g->slot[h] != UINT32_MAX)
+            h = (h + 1) & g->hmask;
+        g->slot[h] = (uint32_t)i;
+    }
+    g->perm = i0;
+    i0 = NULL;
+    st = TESSEL_OK;
+done:
+    free(k0);
+    free(k1);
+    free(i0);
+    free(i1);
+    if (st != TESSEL_OK)
+        tsl_grid_free(g);
+    return st;
+}
+
+size_t tsl_grid_ring(const tsl_grid *g, const uint32_t cc[3], int ring, uint32_t *run,
+                     size_t nrun)
+{
+    for (int dx = -ring; dx <= ring; dx++)
+        for (int dy = -ring; dy <= ring; dy++)
+            for (int dz = -ring; dz <= ring; dz++) {
+                if (abs(dx) != ring && abs(dy) != ring && abs(dz) != ring)
+                    continue;
+                int64_t x = (int64_t)cc[0] + dx, y = (int64_t)cc[1] + dy,
+                        z = (int64_t)cc[2] + dz;
+                if (x < 0 || y < 0 || z < 0 || x >= g->dims[0] || y >= g->dims[1] ||
+                    z >= g->dims[2])
+                    continue;
+                size_t ci = tsl_grid_find(g, tsl_morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
+                if (ci == SIZE_MAX)
+                    continue;
+                run[2 * nrun] = g->start[ci];
+                run[2 * nrun + 1] = g->start[ci + 1];
+                nrun++;
+            }
+    return nrun;
+}
