@@ -106,13 +106,13 @@ static inline unsigned point_test(const gp *g, const gp_gctx *c, uint32_t v, con
 {
     const gp_frame *f = c->f;
     double reach_v = (double)g->maxe[v] * (1.0 + 1e-9) + c->tiny;
+    for (int a = 0; a < 3; a++)
+        if (f->flo[a] - rel[a] > reach_v || rel[a] - f->fhi[a] > reach_v)
+            return 0;
     /* The new triangles lie in the ball of radius reach around R. */
     double ball = f->reach + reach_v;
     if (tsl_dot(rel, rel) > ball * ball * (1.0 + 1e-9))
         return 0;
-    for (int a = 0; a < 3; a++)
-        if (f->flo[a] - rel[a] > reach_v || rel[a] - f->fhi[a] > reach_v)
-            return 0;
     if (!c->cone->on)
         return PM_PASS;
     double q[2] = {tsl_dot(rel, f->u), tsl_dot(rel, f->v)};
