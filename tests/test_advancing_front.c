@@ -3,8 +3,9 @@
  * with the right Euler characteristic; a disc with exactly one border loop;
  * two close parallel sheets as two components; a sphere with noise of a
  * fifth and of a third of the spacing, shuffled, still closed; every result
- * free of self-intersections (exact check). Also duplicates, bad input and
- * the exact triangle test on hand-made cases. */
+ * free of self-intersections (exact check); second normal lines whose sign
+ * does not matter. Also duplicates, bad input and the exact triangle test
+ * on hand-made cases. */
 #include "test.h"
 
 #include "internal.h"
@@ -338,6 +339,52 @@ static void test_noisy_sphere(void)
     }
 }
 
+/* Second normal lines (tsl_advancing_front_lines, as the pipeline passes
+ * the representatives' fitted normals): their sign means nothing, so
+ * flipping any of them changes nothing; NULL is tessel_advancing_front;
+ * with the true normals of a noisy sphere the surface is valid and closed. */
+static void test_lines(void)
+{
+    tessel_cloud c = noisy_sphere(3000, 0.3, 29);
+    float *lines = malloc(3 * c.count * sizeof *lines);
+    float *flipped = malloc(3 * c.count * sizeof *flipped);
+    uint64_t seed = 5;
+    for (size_t i = 0; i < c.count; i++) {
+        double p[3] = {c.xyz[3 * i], c.xyz[3 * i + 1], c.xyz[3 * i + 2]};
+        double len = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        float sign = rnd(&seed) < 0.5 ? -1.0f : 1.0f;
+        for (int k = 0; k < 3; k++) {
+            lines[3 * i + k] = (float)(p[k] / len);
+            flipped[3 * i + k] = sign * lines[3 * i + k];
+        }
+    }
+    tessel_mesh a, b, plain, none;
+    tessel_front_stats sa, sb;
+    CHECK(tsl_advancing_front_lines(&c, lines, NULL, NULL, &a, &sa) == TESSEL_OK);
+    CHECK(tsl_advancing_front_lines(&c, flipped, NULL, NULL, &b, &sb) == TESSEL_OK);
+    CHECK(a.triangle_count == b.triangle_count &&
+          !memcmp(a.triangles, b.triangles, 3 * a.triangle_count * sizeof *a.triangles));
+    CHECK(tsl_advancing_front_lines(&c, NULL, NULL, NULL, &none, NULL) == TESSEL_OK);
+    CHECK(tessel_advancing_front(&c, NULL, NULL, &plain, NULL) == TESSEL_OK);
+    CHECK(none.triangle_count == plain.triangle_count &&
+          !memcmp(none.triangles, plain.triangles,
+                  3 * none.triangle_count * sizeof *none.triangles));
+    tessel_mesh_report rep = check_mesh(&a, &c);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+    CHECK_MSG(rep.boundary_edges == 0 && rep.components == 1 && rep.genus == 0,
+              "lines: %zu boundary edges, %zu components", rep.boundary_edges, rep.components);
+    CHECK(signed_volume(&a) > 0.0);
+    printf("noisy sphere with normal lines: %zu triangles (%zu without), %zu unused points\n",
+           a.triangle_count, plain.triangle_count, sa.unused_points);
+    tessel_mesh_free(&a);
+    tessel_mesh_free(&b);
+    tessel_mesh_free(&plain);
+    tessel_mesh_free(&none);
+    free(lines);
+    free(flipped);
+    tessel_cloud_free(&c);
+}
+
 static void test_duplicates_and_errors(void)
 {
     /* Every point twice: the copies stay unused, the surface is the same. */
@@ -436,6 +483,7 @@ int main(void)
     test_disc();
     test_two_sheets();
     test_noisy_sphere();
+    test_lines();
     test_duplicates_and_errors();
     test_triangle_test();
     return TEST_SUMMARY();
