@@ -11,8 +11,8 @@
  *      self-intersecting pairs, components) from tessel_mesh_check, and
  *      --out DIR writes the meshes.
  *
- * usage: bench_pipeline [--max N] [--threads T] [--refine R] [--data DIR]
- *                       [--out DIR] [--skip-sizes] */
+ * usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K]
+ *                       [--data DIR] [--out DIR] [--skip-sizes] */
 #include "tessel.h"
 
 #include <math.h>
@@ -178,6 +178,8 @@ int main(int argc, char **argv)
             p.threads = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--refine") && i + 1 < argc)
             p.refine.rounds = (uint32_t)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--refine-k") && i + 1 < argc)
+            p.refine.k = (uint32_t)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--data") && i + 1 < argc)
             dir = argv[++i];
         else if (!strcmp(argv[i], "--out") && i + 1 < argc)
@@ -186,8 +188,8 @@ int main(int argc, char **argv)
             skip_sizes = 1;
         else {
             fprintf(stderr,
-                    "usage: bench_pipeline [--max N] [--threads T] [--refine R] [--data DIR] "
-                    "[--out DIR] [--skip-sizes]\n");
+                    "usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K] "
+                    "[--data DIR] [--out DIR] [--skip-sizes]\n");
             return 1;
         }
     }
