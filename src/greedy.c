@@ -331,7 +331,10 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
         return TESSEL_OK;
     for (int i = 0; i < cnt; i++) {
         uint32_t v[3] = {R, pts[i], pts[i + 1]};
-        if (!tsl_gp_guard_ok(g, v)) {
+        const gp_cand *a = &g->cand[g->seq[j + (size_t)i]];
+        const gp_cand *b = &g->cand[g->seq[j + (size_t)i + 1]];
+        double qa[2] = {a->x, a->y}, qb[2] = {b->x, b->y};
+        if (!tsl_gp_guard_ok(g, v, qa, qb)) {
             g->sum.rejected_intersecting++;
             return TESSEL_OK;
         }
@@ -347,6 +350,14 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
         gp_gtri *e = &g->gt[g->gt_count++];
         e->t = t;
         tsl_gp_tri_box(g, g->tri[t].v, e->lo, e->hi);
+        /* Its projection, for the fan certificate of the next ones. */
+        const gp_cand *a = &g->cand[g->seq[j + (size_t)i]];
+        const gp_cand *b = &g->cand[g->seq[j + (size_t)i + 1]];
+        e->fan = 1;
+        e->p1[0] = a->x;
+        e->p1[1] = a->y;
+        e->p2[0] = b->x;
+        e->p2[1] = b->y;
     }
     tsl_gp_link_apply(g, R, pts[0], pts[cnt], how_r, 1);
     for (int i = 0; i <= cnt; i++)
@@ -891,7 +902,7 @@ static tessel_status try_ear(gp *g, uint32_t v, uint32_t u, uint32_t w, int *ok)
     if (s != TESSEL_OK)
         return s;
     uint32_t tv[3] = {v, u, w};
-    if (!tsl_gp_guard_ok(g, tv)) {
+    if (!tsl_gp_guard_ok(g, tv, NULL, NULL)) {
         g->sum.rejected_intersecting++;
         return TESSEL_OK;
     }

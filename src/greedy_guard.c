@@ -151,6 +151,7 @@ static inline tessel_status guard_push(gp *g, const gp_gctx *c, uint32_t t, unsi
         return TESSEL_ERR_NOMEM;
     gp_gtri *e = &g->gt[g->gt_count++];
     e->t = t;
+    e->fan = 0;
     memcpy(e->lo, tl, sizeof tl);
     memcpy(e->hi, th, sizeof th);
     return TESSEL_OK;
@@ -218,6 +219,8 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
         cone.eps = 1e-9 * span * span;
     }
     g->cone = cone;
+    double span = 2.0 * half + g->ell;
+    g->fan_eps = 1e-9 * span * span;
     gp_gctx c;
     c.cone = &g->cone;
     c.f = f;
@@ -291,22 +294,54 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     return TESSEL_OK;
 }
 
+/* Fan certificate: triangles N = (R, a, b) and O = (R, c, d) of R's fan
+ * (a, b, c, d projected on R's plane, N counter-clockwise) meet only in
+ * shared vertices or edges when O's vertices other than b lie strictly left
+ * of the line from R through b (N lies on its closed right side and meets
+ * it only in its edge Rb), or O's vertices other than a strictly right of
+ * the line through a. The projection is linear: the images then meet only
+ * in the images of R and a shared edge, so the triangles meet only there.
+ * The margin covers the rounding of the projections. Consecutive triangles
+ * of a fan, and most others, pass; the rest get the exact test. */
+static inline int fan_separated(const uint32_t v[3], const double a[2], const double b[2],
+                                const gp_tri *T, const gp_gtri *o, double eps)
+{
+    if (!(cross2(a[0], a[1], b[0], b[1]) > eps))
+        return 0;
+    const double *x[2] = {o->p1, o->p2};
+    int left = 1, right = 1;
+    for (int k = 0; k < 2; k++) {
+        uint32_t id = T->v[k + 1];
+        if (id != v[2] && !(cross2(b[0], b[1], x[k][0], x[k][1]) > eps))
+            left = 0;
+        if (id != v[1] && !(cross2(x[k][0], x[k][1], a[0], a[1]) > eps))
+            right = 0;
+    }
+    return left || right;
+}
+
 /* The new triangle v meets no collected held triangle except in a shared
  * vertex or edge. */
-int tsl_gp_guard_ok(gp *g, const uint32_t v[3])
+int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2])
 {
     float lo[3], hi[3];
     tsl_gp_tri_box(g, v, lo, hi);
     double p[3][3];
-    for (int k = 0; k < 3; k++)
-        pos(g, v[k], p[k]);
     const double *pa[3] = {p[0], p[1], p[2]};
+    int have_p = 0;
     for (size_t i = 0; i < g->gt_count; i++) {
         const gp_gtri *e = &g->gt[i];
         if (e->lo[0] > hi[0] || e->hi[0] < lo[0] || e->lo[1] > hi[1] || e->hi[1] < lo[1] ||
             e->lo[2] > hi[2] || e->hi[2] < lo[2])
             continue;
         const gp_tri *T = &g->tri[e->t];
+        if (e->fan && q1 && T->v[0] == v[0] && fan_separated(v, q1, q2, T, e, g->fan_eps))
+            continue;
+        if (!have_p) {
+            for (int k = 0; k < 3; k++)
+                pos(g, v[k], p[k]);
+            have_p = 1;
+        }
         double q[3][3];
         for (int k = 0; k < 3; k++)
             pos(g, T->v[k], q[k]);
@@ -316,4 +351,3 @@ int tsl_gp_guard_ok(gp *g, const uint32_t v[3])
     }
     return 1;
 }
-

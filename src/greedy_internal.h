@@ -69,6 +69,8 @@ typedef struct gp_cand {
 typedef struct gp_gtri {
     uint32_t t;
     float lo[3], hi[3];
+    int fan;          /* made by the current reference point R = v[0] */
+    double p1[2], p2[2]; /* then: projections of v[1], v[2] on R's plane */
 } gp_gtri;
 
 /* R's free sector in its projection: new triangles lie in the cone from
@@ -172,6 +174,7 @@ typedef struct gp {
     gp_gtri *gt;
     size_t gt_count, gt_cap;
     uint32_t stamp;       /* of the guard's collection */
+    double fan_eps;       /* rounding margin of the fan certificate */
     int empty_gap;        /* the last fill found no candidate between R's
                              boundary neighbours */
     gp_cone cone;         /* of the current reference point */
@@ -374,7 +377,9 @@ int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3]);
  * [f->flo, f->fhi] around R (within f->reach of R) could meet; use_cone:
  * skip those the free-cone certificate rules out (R must have a fan). */
 tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone);
-/* New triangle v meets no collected triangle beyond shared vertices/edges. */
-int tsl_gp_guard_ok(gp *g, const uint32_t v[3]);
+/* New triangle v meets no collected triangle beyond shared vertices/edges.
+ * q1, q2: projections of v[1], v[2] on the plane of R = v[0] when v is one
+ * of R's fan triangles (else NULL). */
+int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2]);
 
 #endif /* TESSEL_GREEDY_INTERNAL_H */
