@@ -193,6 +193,8 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     g->stamp++;
     if (g->stamp > PM_STAMP_MAX) {
         memset(g->pmark, 0, g->n * sizeof *g->pmark);
+        if (g->tused)
+            memset(g->tstamp, 0, g->tused * sizeof *g->tstamp);
         g->stamp = 1;
     }
     g->gt_count = 0;
@@ -261,8 +263,7 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
         if ((s = collect_point(g, &c, v, g->pmark[v] & PM_FLAGS)) != TESSEL_OK)
             return s;
     }
-    /* Long triangles of the cells the box overlaps, each in the first of
-     * them that it overlaps. */
+    /* Long triangles of the cells the box overlaps, each once. */
     if (!g->lg_slots)
         return TESSEL_OK;
     uint32_t c0[3], c1[3];
@@ -275,15 +276,10 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
                     continue;
                 for (uint32_t e = g->lg_head[h]; e != NONE; e = g->lt_next[e]) {
                     uint32_t t = g->lt_tri[e];
-                    const gp_tri *T = &g->tri[t];
-                    float tl[3], th[3];
-                    uint32_t t0[3], t1[3];
-                    tsl_gp_tri_box(g, T->v, tl, th);
-                    tsl_gp_lg_cells(g, tl, th, t0, t1);
-                    if (x != (t0[0] > c0[0] ? t0[0] : c0[0]) ||
-                        y != (t0[1] > c0[1] ? t0[1] : c0[1]) ||
-                        z != (t0[2] > c0[2] ? t0[2] : c0[2]))
+                    if (g->tstamp[t] == g->stamp)
                         continue;
+                    g->tstamp[t] = g->stamp;
+                    const gp_tri *T = &g->tri[t];
                     unsigned fl = PM_PASS | PM_FLAGS;
                     for (int j = 0; j < 3; j++)
                         fl &= vertex_marks(g, &c, T->v[j]);

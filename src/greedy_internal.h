@@ -135,6 +135,8 @@ typedef struct gp {
     gp_tri *tri;
     uint8_t *tflag;
     uint32_t *tblock;     /* retirement block of the triangle's first vertex */
+    uint32_t *tstamp;     /* long triangles: stamp of the last guard
+                             collection that looked at them */
     size_t tcap, tused, talive;
     uint32_t tfree;
     size_t created_since_sweep, alive_after_sweep;

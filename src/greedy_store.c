@@ -496,11 +496,16 @@ static tessel_status tri_alloc(gp *g, uint32_t *out)
             if (!nb)
                 return TESSEL_ERR_NOMEM;
             g->tblock = nb;
+            uint32_t *ns = realloc(g->tstamp, cap * sizeof *ns);
+            if (!ns)
+                return TESSEL_ERR_NOMEM;
+            g->tstamp = ns;
             g->tcap = cap;
         }
         t = (uint32_t)g->tused++;
     }
     g->tflag[t] = TF_ALIVE;
+    g->tstamp[t] = 0;
     *out = t;
     return TESSEL_OK;
 }
@@ -777,6 +782,7 @@ void tsl_gp_free(gp *g)
     free(g->tri);
     free(g->tflag);
     free(g->tblock);
+    free(g->tstamp);
     free(g->lt_tri);
     free(g->lt_next);
     free(g->queue);
