@@ -287,7 +287,14 @@ static inline uint64_t lg_key(uint32_t x, uint32_t y, uint32_t z)
 static inline size_t lg_find(const gp *g, uint64_t key)
 {
     size_t mask = g->lg_slots - 1;
-    size_t h = (size_t)((key * 0x9E3779B97F4A7C15ull) >> 20) & mask;
+    /* Full 64-bit mix: a bare multiply leaves the low bits blind to x (the
+     * top field): cells differing in x collided, long probe runs on scans. */
+    uint64_t k = key ^ (key >> 31);
+    k *= 0x9E3779B97F4A7C15ull;
+    k ^= k >> 29;
+    k *= 0xBF58476D1CE4E5B9ull;
+    k ^= k >> 32;
+    size_t h = (size_t)k & mask;
     while (g->lg_keys[h] && g->lg_keys[h] != key + 1)
         h = (h + 1) & mask;
     return h;
