@@ -280,6 +280,12 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
                         continue;
                     g->tstamp[t] = g->stamp;
                     const gp_tri *T = &g->tri[t];
+                    /* The box first: it needs only the coordinates. */
+                    float tl[3], th[3];
+                    tsl_gp_tri_box(g, T->v, tl, th);
+                    if (tl[0] > c.hi[0] || th[0] < c.lo[0] || tl[1] > c.hi[1] ||
+                        th[1] < c.lo[1] || tl[2] > c.hi[2] || th[2] < c.lo[2])
+                        continue;
                     unsigned fl = PM_PASS | PM_FLAGS;
                     for (int j = 0; j < 3; j++)
                         fl &= vertex_marks(g, &c, T->v[j]);
