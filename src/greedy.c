@@ -179,7 +179,8 @@ static void drop_hidden(gp *g, uint32_t end_a, uint32_t end_b)
  * edges) and those hidden from R by a boundary edge of a candidate
  * (Theorem 4.1: no other edge needs testing). ends: candidates never
  * dropped (R's own boundary neighbours). */
-static void visibility(gp *g, uint32_t R, const gp_frame *f, uint32_t end_a, uint32_t end_b)
+static tessel_status visibility(gp *g, uint32_t R, const gp_frame *f, uint32_t end_a,
+                                uint32_t end_b)
 {
     size_t nc = g->cand_count;
     /* Rule 2. */
@@ -202,7 +203,16 @@ static void visibility(gp *g, uint32_t R, const gp_frame *f, uint32_t end_a, uin
         if (inside)
             c->kept = 0;
     }
-    /* Rule 3: boundary edges of the candidates as occluders. */
+    /* Rule 3: boundary edges of the candidates as occluders; the ones that
+     * may be hidden listed first. */
+    if (grow((void **)&g->hide, &g->hide_cap, nc, sizeof *g->hide))
+        return TESSEL_ERR_NOMEM;
+    size_t nh = 0;
+    for (size_t i = 0; i < nc; i++) {
+        const gp_cand *x = &g->cand[i];
+        if (x->kept == 1 && x->idx != end_a && x->idx != end_b)
+            g->hide[nh++] = (uint32_t)i;
+    }
     for (size_t j = 0; j < nc; j++) {
         const gp_cand *o = &g->cand[j];
         if (g->head[o->idx] == NONE)
@@ -214,10 +224,9 @@ static void visibility(gp *g, uint32_t R, const gp_frame *f, uint32_t end_a, uin
             double q[2];
             project_point(g, R, f, other, q);
             double px = o->x, py = o->y;
-            for (size_t i = 0; i < nc; i++) {
-                gp_cand *x = &g->cand[i];
-                if (x->kept != 1 || x->idx == end_a || x->idx == end_b || x->idx == o->idx ||
-                    x->idx == other)
+            for (size_t h = 0; h < nh; h++) {
+                gp_cand *x = &g->cand[g->hide[h]];
+                if (x->kept != 1 || x->idx == o->idx || x->idx == other)
                     continue;
                 double o1 = cross2(x->x, x->y, px, py), o2 = cross2(x->x, x->y, q[0], q[1]);
                 if (!((o1 > 0.0 && o2 < 0.0) || (o1 < 0.0 && o2 > 0.0)))
@@ -229,6 +238,7 @@ static void visibility(gp *g, uint32_t R, const gp_frame *f, uint32_t end_a, uin
             }
         }
     }
+    return TESSEL_OK;
 }
 
 enum { TRY_OK = 0, TRY_FAIL, TRY_LEAD };
@@ -486,7 +496,9 @@ static tessel_status fill_sector(gp *g, uint32_t R, gp_frame *f)
         else if (!(c->key > 0.0 && c->key < ks))
             c->kept = 2; /* mesh side: neither kept nor a trap candidate */
     }
-    visibility(g, R, f, e, s);
+    tessel_status st_ = visibility(g, R, f, e, s);
+    if (st_ != TESSEL_OK)
+        return st_;
     sort_cands(g);
     drop_hidden(g, e, s);
     g->seq_count = 0;
@@ -517,7 +529,7 @@ static tessel_status fill_sector(gp *g, uint32_t R, gp_frame *f)
             g->cand[i].kept = 1, g->cand[i].key = -1.0;
     angle_criterion(g);
     fan_box(g, f, g->seq, g->seq_count);
-    tessel_status st_ = tsl_gp_guard_collect(g, R, f, 1);
+    st_ = tsl_gp_guard_collect(g, R, f, 1);
     if (st_ != TESSEL_OK)
         return st_;
     return walk(g, R, f);
@@ -783,7 +795,8 @@ static tessel_status seed(gp *g, uint32_t R)
     project_cands(g, &f, NONE, NONE);
     for (size_t i = 0; i < g->cand_count; i++)
         g->cand[i].key = pseudo_angle(g->cand[i].x, g->cand[i].y);
-    visibility(g, R, &f, NONE, NONE);
+    if ((s = visibility(g, R, &f, NONE, NONE)) != TESSEL_OK)
+        return s;
     sort_cands(g);
     drop_hidden(g, NONE, NONE);
     for (int a = 0; a < 3; a++)

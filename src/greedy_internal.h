@@ -173,6 +173,8 @@ typedef struct gp {
     size_t cand_count, cand_cap;
     uint32_t *seq;
     size_t seq_count, seq_cap;
+    uint32_t *hide;       /* visibility: candidates that may be hidden */
+    size_t hide_cap;
     gp_gtri *gt;
     size_t gt_count, gt_cap;
     uint32_t stamp;       /* of the guard's collection */

@@ -793,6 +793,7 @@ void tsl_gp_free(gp *g)
     free(g->boxd);
     free(g->cand);
     free(g->seq);
+    free(g->hide);
     free(g->gt);
     free(g->pmark);
     free(g->gpass);
