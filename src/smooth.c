@@ -27,7 +27,8 @@
  * rings of cells for the rare point whose neighbours reach farther): the
  * same neighbours as the kd-tree, at a fraction of the cost. Later passes
  * reuse those neighbours at their new positions and take one more IRLS
- * step from the previous pass's normal. Every output position depends only
+ * step from the previous pass's normal (with the quadric: its height over
+ * the plane across that normal, and its own normal at the point). Every output position depends only
  * on the previous pass's positions, so points are independent: OpenMP
  * loops with per-point output slots give the same bits for any thread
  * count. */
@@ -468,11 +469,12 @@ static bool frame_plane(const frame_sums *fs, double inv_h, double n2[3], double
     return true;
 }
 
-/* The quadric's height f above the plane at the query's foot point. The
- * curvature terms carry a ridge penalty of `ridge` times the total weight
- * (u, v in h), a prior that keeps noisy flat neighbourhoods near the
- * plane. False when the system is singular. */
-static bool frame_height(const frame_sums *fs, double ridge, double *f)
+/* The quadric's height f above the plane at the query's foot point, and
+ * its slope there (df/du, df/dv, world units per h). The curvature terms
+ * carry a ridge penalty of `ridge` times the total weight (u, v in h), a
+ * prior that keeps noisy flat neighbourhoods near the plane. False when
+ * the system is singular. */
+static bool frame_height(const frame_sums *fs, double ridge, double *f, double slope[2])
 {
     /* Unknowns (a, b, c, d, e, f); moment indices: 1, u, v, uu, uv, vv,
      * uuu, uuv, uvv, vvv, uuuu, uuuv, uuvv, uvvv, vvvv. */
@@ -490,6 +492,32 @@ static bool frame_height(const frame_sums *fs, double ridge, double *f)
     if (!solve6(M, r, x))
         return false;
     *f = x[5];
+    slope[0] = x[3], slope[1] = x[4];
+    return true;
+}
+
+/* A later pass's fit with the quadric: the point already lies on the
+ * previous fit, so the robust weights belong to the plane through it
+ * across the previous normal n, and Q is the quadric's height over that
+ * plane, as the general IRLS step would give; the new normal is the
+ * quadric's own at the point (its slope tilts n), which saves that step's
+ * weighted plane and eigen-solve and is closer to the true normal on the
+ * noisy scans (docs/smooth.md). False, with n unchanged, when the quadric
+ * is singular or out of range: the caller falls back to the plane step. */
+static bool warm_quadric(const fit_ctl *f, fit_buf *b, double n[3], double move[3])
+{
+    frame_sums q;
+    double hq, slope[2], m[3];
+    plane_weights(b, n, 0.0, (float)f->inv_2sr2);
+    frame_sweep(b, n, 0.0, 1.0 / f->h, &q);
+    if (!frame_height(&q, f->ridge, &hq, slope) || !(fabs(hq) <= f->quad_max))
+        return false;
+    for (int a = 0; a < 3; a++)
+        m[a] = n[a] - slope[0] * q.e1[a] - slope[1] * q.e2[a];
+    if (!tsl_normalize(m))
+        return false;
+    move[0] = hq * n[0], move[1] = hq * n[1], move[2] = hq * n[2];
+    n[0] = m[0], n[1] = m[1], n[2] = m[2];
     return true;
 }
 
@@ -503,7 +531,8 @@ static bool frame_height(const frame_sums *fs, double ridge, double *f)
  * Gaussian-weighted one (start == NULL: a first pass, the projector), or
  * the plane through the query across the previous pass's normal `start`
  * (later passes: the point already lies on the previous fit), which takes
- * one step: each pass continues the iteration instead of restarting it.
+ * one step: each pass continues the iteration instead of restarting it
+ * (with the quadric, that step is warm_quadric).
  * Q is the foot point on the last plane the weights belong to, lifted by
  * the quadric's height over it (quadric on), or the foot point on the
  * final plane (the paper's operator). */
@@ -528,6 +557,10 @@ TSL_CLONES static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *sta
         if (!tsl_normalize(n))
             return false;
         max_it = 1;
+        if (f->quadric && warm_quadric(f, b, n, move)) {
+            *iterations = 1;
+            return true;
+        }
     } else {
         double W, s[3], mm[6], c[3];
         for (size_t j = 0; j < mp; j++)
@@ -575,8 +608,8 @@ TSL_CLONES static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *sta
     if (start && !stepped)
         return false; /* the warm start's step failed: no plane at all */
     *iterations = it;
-    double hq;
-    if (have && frame_height(&fs, f->ridge, &hq) && fabs(hq) <= f->quad_max) {
+    double hq, slope[2];
+    if (have && frame_height(&fs, f->ridge, &hq, slope) && fabs(hq) <= f->quad_max) {
         double h0 = fs.t + hq;
         move[0] = h0 * fs.n[0], move[1] = h0 * fs.n[1], move[2] = h0 * fs.n[2];
     } else {
