@@ -17,8 +17,9 @@
  *
  * Targets (issue 3): 1,000,000 points/s on one core; under 100 bytes per
  * point at 10^7 points when streaming to a file. PCL's
- * GreedyProjectionTriangulation is not built here (libpcl-dev is absent on
- * the development machine); see docs/greedy.md for the comparison plan. */
+ * GreedyProjectionTriangulation on the same inputs is bench_greedy_pcl
+ * (built with -DTESSEL_BENCH_PEERS=ON when PCL is installed); figures in
+ * docs/greedy.md. */
 #include "tessel.h"
 #include "../tests/surfaces.h"
 
