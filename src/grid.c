@@ -18,8 +18,46 @@ void tsl_grid_free(tsl_grid *g)
     memset(g, 0, sizeof *g);
 }
 
+/* One stable counting-sort pass on byte `sh` of the keys, the input cut
+ * into `parts` consecutive slices sorted by as many threads: each slice
+ * counts its own bytes, and slice t's items of a byte go after those of
+ * the slices before it, so the order is the stable one for any number of
+ * slices. count holds parts rows of 256. */
+static void radix_pass(const uint64_t *k0, const uint32_t *i0, uint64_t *k1, uint32_t *i1,
+                       size_t n, int sh, size_t (*count)[256], int parts)
+{
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(parts) schedule(static, 1)
+#endif
+    for (int t = 0; t < parts; t++) {
+        size_t lo = n * (size_t)t / (size_t)parts, hi = n * (size_t)(t + 1) / (size_t)parts;
+        memset(count[t], 0, sizeof count[t]);
+        for (size_t i = lo; i < hi; i++)
+            count[t][(k0[i] >> sh) & 0xff]++;
+    }
+    size_t sum = 0;
+    for (int b = 0; b < 256; b++)
+        for (int t = 0; t < parts; t++) {
+            size_t c = count[t][b];
+            count[t][b] = sum;
+            sum += c;
+        }
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(parts) schedule(static, 1)
+#endif
+    for (int t = 0; t < parts; t++) {
+        size_t lo = n * (size_t)t / (size_t)parts, hi = n * (size_t)(t + 1) / (size_t)parts;
+        for (size_t i = lo; i < hi; i++) {
+            size_t dst = count[t][(k0[i] >> sh) & 0xff]++;
+            k1[dst] = k0[i];
+            i1[dst] = i0[i];
+        }
+    }
+}
+
 /* Sorts the points by cell with a stable LSD radix sort on the Morton key
- * (only the bytes in use), so equal cells keep increasing point order. */
+ * (only the bytes in use), so equal cells keep increasing point order
+ * whatever the thread count. */
 tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cell,
                              int threads)
 {
@@ -27,7 +65,6 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
     /* Minima and maxima are exact: any thread count gives the same box. */
     float lx = INFINITY, ly = INFINITY, lz = INFINITY, hx = -INFINITY, hy = -INFINITY,
           hz = -INFINITY;
-    (void)threads;
 #ifdef _OPENMP
 #pragma omp parallel for num_threads(threads) schedule(static) \
     reduction(min : lx, ly, lz) reduction(max : hx, hy, hz)
@@ -55,6 +92,7 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
     int passes = (3 * bits + 7) / 8;
     g->n = n;
 
+    size_t(*count)[256] = NULL;
     uint64_t *k0 = tsl_alloc_array(n, sizeof *k0), *k1 = tsl_alloc_array(n, sizeof *k1);
     uint32_t *i0 = tsl_alloc_array(n, sizeof *i0), *i1 = tsl_alloc_array(n, sizeof *i1);
     g->sxyz = tsl_alloc_array(n, 3 * sizeof(float));
@@ -69,18 +107,12 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
         k0[i] = tsl_morton(tsl_grid_cell(g, p, 0), tsl_grid_cell(g, p, 1), tsl_grid_cell(g, p, 2));
         i0[i] = (uint32_t)i;
     }
+    int parts = threads > 0 ? threads : 1;
+    count = tsl_alloc_array((size_t)parts, sizeof *count);
+    if (!count)
+        goto done;
     for (int pass = 0; pass < passes; pass++) {
-        size_t count[257] = {0};
-        int sh = 8 * pass;
-        for (size_t i = 0; i < n; i++)
-            count[((k0[i] >> sh) & 0xff) + 1]++;
-        for (int b = 0; b < 256; b++)
-            count[b + 1] += count[b];
-        for (size_t i = 0; i < n; i++) {
-            size_t dst = count[(k0[i] >> sh) & 0xff]++;
-            k1[dst] = k0[i];
-            i1[dst] = i0[i];
-        }
+        radix_pass(k0, i0, k1, i1, n, 8 * pass, count, parts);
         uint64_t *tk = k0;
         k0 = k1, k1 = tk;
         uint32_t *ti = i0;
@@ -99,8 +131,12 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
             g->key[c] = k0[i];
             g->start[c++] = (uint32_t)i;
         }
-        memcpy(g->sxyz + 3 * i, xyz + 3 * (size_t)i0[i], 3 * sizeof(float));
     }
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(parts) schedule(static)
+#endif
+    for (size_t i = 0; i < n; i++)
+        memcpy(g->sxyz + 3 * i, xyz + 3 * (size_t)i0[i], 3 * sizeof(float));
     g->start[ncell] = (uint32_t)n;
     g->ncell = ncell;
     /* Cell lookups by hashing: a quarter full at most. */
@@ -122,6 +158,7 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
     i0 = NULL;
     st = TESSEL_OK;
 done:
+    free(count);
     free(k0);
     free(k1);
     free(i0);
