@@ -65,6 +65,12 @@ typedef struct rf {
     edge_map edges;
     tsl_trigrid grid;
     double cos_turn;
+    /* The previous round's fits: edge -> index into fit_sum (3 floats per
+     * edge, the sum over its midpoint's k nearest cloud points of p - m).
+     * Vertices never move, so an edge that survives a round keeps its
+     * midpoint, its neighbours and this sum. */
+    edge_map fit_of;
+    float *fit_sum;
     tessel_refine_stats stats;
 } rf;
 
@@ -835,13 +841,15 @@ static tessel_status spatial_order(const rf *r, const split_job *jobs, size_t ne
     return TESSEL_OK;
 }
 
-static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_params *p)
+static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_params *p,
+                               bool keep_fits)
 {
     /* Candidate edges: each undirected edge once (its half-edge with the
      * smaller id, or its only one). */
     size_t nh = 3 * r->nt, ne = 0;
     split_job *jobs = tsl_alloc_array(nh, sizeof *jobs);
-    uint8_t *want = NULL;
+    uint8_t *want = NULL, *fitted = NULL;
+    float *sum = NULL;
     uint32_t *order = NULL;
     double *vn = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
@@ -856,7 +864,10 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
         ne++;
     }
     want = tsl_calloc_array(ne ? ne : 1, 1);
-    if (!want || (st = vertex_normals(r, &vn)) || (st = spatial_order(r, jobs, ne, &order)))
+    fitted = tsl_calloc_array(ne ? ne : 1, 1);
+    sum = tsl_alloc_array(3 * (ne ? ne : 1), sizeof *sum);
+    if (!want || !fitted || !sum || (st = vertex_normals(r, &vn)) ||
+        (st = spatial_order(r, jobs, ne, &order)))
         goto done;
     size_t far = 0, unfit = 0;
     long long count = (long long)ne;
@@ -879,19 +890,25 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
         }
         if (!tsl_normalize(nm))
             continue;
-        uint32_t idx[MAX_K];
-        float q[3] = {(float)m[0], (float)m[1], (float)m[2]};
-        size_t got = tessel_index_knn(c->index, q, c->k, idx, NULL);
-        if (!got)
-            continue;
-        double a = 0.0;
-        for (size_t s = 0; s < got; s++) {
-            double pc[3], w[3];
-            tsl_load(c->cloud->xyz + 3 * (size_t)idx[s], pc);
-            tsl_sub(pc, m, w);
-            a += tsl_dot(w, nm);
+        float *ws = sum + 3 * ii;
+        uint32_t known = r->fit_sum ? map_get(&r->fit_of, jb->u, jb->v) : NONE;
+        if (known != NONE) {
+            memcpy(ws, r->fit_sum + 3 * (size_t)known, 3 * sizeof *ws);
+        } else {
+            uint32_t idx[MAX_K];
+            float q[3] = {(float)m[0], (float)m[1], (float)m[2]};
+            size_t got = tessel_index_knn(c->index, q, c->k, idx, NULL);
+            if (got != c->k)
+                continue;
+            double w[3] = {0.0, 0.0, 0.0};
+            for (size_t s = 0; s < got; s++)
+                for (int k = 0; k < 3; k++)
+                    w[k] += (double)c->cloud->xyz[3 * (size_t)idx[s] + k] - m[k];
+            for (int k = 0; k < 3; k++)
+                ws[k] = (float)w[k];
         }
-        a /= (double)got;
+        fitted[ii] = 1;
+        double a = (ws[0] * nm[0] + ws[1] * nm[1] + ws[2] * nm[2]) / (double)c->k;
         if (!(fabs(a) > c->eps))
             continue;
         far++;
@@ -905,6 +922,23 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
     }
     r->stats.far_edges += far;
     r->stats.unfit += unfit;
+    /* Keep this round's fits for the next round (the edges of the mesh
+     * before any split or flip; most of them survive). */
+    map_free(&r->fit_of);
+    free(r->fit_sum);
+    r->fit_sum = NULL;
+    if (keep_fits) {
+        size_t nf = 0;
+        for (size_t e = 0; e < ne; e++)
+            nf += fitted[e];
+        if ((st = map_init(&r->fit_of, nf)))
+            goto done;
+        for (size_t e = 0; e < ne; e++)
+            if (fitted[e] && (st = map_put(&r->fit_of, jobs[e].u, jobs[e].v, (uint32_t)e)))
+                goto done;
+        r->fit_sum = sum;
+        sum = NULL;
+    }
     /* Longest first; each edge once. */
     size_t nw = 0;
     for (size_t e = 0; e < ne; e++)
@@ -937,6 +971,8 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
 done:
     free(jobs);
     free(want);
+    free(fitted);
+    free(sum);
     free(order);
     free(vn);
     return st;
@@ -1017,7 +1053,7 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
     for (uint32_t round = 0; round < p.rounds; round++) {
         if ((st = tsl_progress(callbacks, "refine", (double)round / p.rounds)))
             goto done;
-        if ((st = build_grid(&r)) || (st = one_round(&r, &c, &p)))
+        if ((st = build_grid(&r)) || (st = one_round(&r, &c, &p, round + 1 < p.rounds)))
             goto done;
     }
     for (size_t h = 0; h < 3 * r.nt; h++)
@@ -1058,6 +1094,8 @@ done:
     free(r.twin);
     free(r.box);
     map_free(&r.edges);
+    map_free(&r.fit_of);
+    free(r.fit_sum);
     tsl_trigrid_free(&r.grid);
     return st;
 }

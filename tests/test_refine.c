@@ -79,6 +79,40 @@ static bool same_mesh(const tessel_mesh *a, const tessel_mesh *b)
                0;
 }
 
+static int cmp_tri(const void *pa, const void *pb)
+{
+    const uint32_t *a = pa, *b = pb;
+    for (int i = 0; i < 3; i++)
+        if (a[i] != b[i])
+            return a[i] < b[i] ? -1 : 1;
+    return 0;
+}
+
+/* The same vertices and the same oriented triangles, in any order. */
+static bool same_surface(const tessel_mesh *a, const tessel_mesh *b)
+{
+    if (a->vertex_count != b->vertex_count || a->triangle_count != b->triangle_count ||
+        memcmp(a->xyz, b->xyz, 3 * a->vertex_count * sizeof *a->xyz) != 0)
+        return false;
+    size_t n = a->triangle_count;
+    uint32_t *t[2] = {malloc(3 * n * sizeof(uint32_t)), malloc(3 * n * sizeof(uint32_t))};
+    bool same = t[0] && t[1];
+    for (int m = 0; m < 2 && same; m++) {
+        const uint32_t *src = m ? b->triangles : a->triangles;
+        for (size_t i = 0; i < n; i++) {
+            int r = src[3 * i] < src[3 * i + 1] ? (src[3 * i] < src[3 * i + 2] ? 0 : 2)
+                                                : (src[3 * i + 1] < src[3 * i + 2] ? 1 : 2);
+            for (int k = 0; k < 3; k++)
+                t[m][3 * i + k] = src[3 * i + (r + k) % 3];
+        }
+        qsort(t[m], n, 3 * sizeof(uint32_t), cmp_tri);
+    }
+    same = same && memcmp(t[0], t[1], 3 * n * sizeof(uint32_t)) == 0;
+    free(t[0]);
+    free(t[1]);
+    return same;
+}
+
 static tessel_status copy_mesh(tessel_mesh *dst, const tessel_mesh *src)
 {
     tessel_status st = tessel_mesh_alloc(dst, src->vertex_count, src->triangle_count,
@@ -151,7 +185,37 @@ static void test_refine_sphere(void)
     rp.threads = 2;
     CHECK(tessel_refine(&m2, &dense, NULL, &rp, NULL, NULL) == TESSEL_OK);
     CHECK(same_mesh(&m, &m2));
+    tessel_mesh_free(&m);
+    tessel_mesh_free(&m2);
+    tessel_cloud_free(&coarse);
+    tessel_cloud_free(&dense);
+}
 
+static void test_refine_rounds(void)
+{
+    /* A finer triangulation, most of whose edges survive the first round:
+     * the second round reuses their fits. One call of two rounds and two
+     * calls of one round (which fit every edge again) give the same
+     * surface (the triangles may come in another order). */
+    tessel_cloud coarse, dense;
+    CHECK(surf_sphere(&coarse, 0.09, 3) == TESSEL_OK);
+    CHECK(surf_sphere_fibonacci(&dense, 20000, 0.3, 4) == TESSEL_OK);
+    tessel_mesh m, m2;
+    CHECK(tessel_advancing_front(&coarse, NULL, NULL, &m, NULL) == TESSEL_OK);
+    CHECK(copy_mesh(&m2, &m) == TESSEL_OK);
+    tessel_refine_params rp = tessel_refine_params_default();
+    tessel_refine_stats rs;
+    CHECK(tessel_refine(&m, &dense, NULL, &rp, NULL, &rs) == TESSEL_OK);
+    rp.rounds = 1;
+    tessel_refine_stats r1, r2;
+    CHECK(tessel_refine(&m2, &dense, NULL, &rp, NULL, &r1) == TESSEL_OK);
+    CHECK(!same_surface(&m, &m2));
+    CHECK(tessel_refine(&m2, &dense, NULL, &rp, NULL, &r2) == TESSEL_OK);
+    CHECK(r1.splits > 0 && r2.splits > 0);
+    CHECK(rs.splits == r1.splits + r2.splits && rs.far_edges == r1.far_edges + r2.far_edges);
+    CHECK(same_surface(&m, &m2));
+    printf("refine rounds: %zu vertices, splits %zu + %zu\n", coarse.count, r1.splits,
+           r2.splits);
     tessel_mesh_free(&m);
     tessel_mesh_free(&m2);
     tessel_cloud_free(&coarse);
@@ -341,6 +405,7 @@ static void test_pipeline_threads_and_cancel(void)
 int main(void)
 {
     test_refine_sphere();
+    test_refine_rounds();
     test_refine_plane();
     test_refine_invalid();
     test_pipeline_sphere();
