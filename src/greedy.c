@@ -339,6 +339,9 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
     int how_r = tsl_gp_link_check(g, R, pts[0], pts[cnt], cnt);
     if (how_r == LINK_FAIL)
         return TESSEL_OK;
+    tessel_status gs = tsl_gp_guard_ready(g);
+    if (gs != TESSEL_OK)
+        return gs;
     for (int i = 0; i < cnt; i++) {
         uint32_t v[3] = {R, pts[i], pts[i + 1]};
         const gp_cand *a = &g->cand[g->seq[j + (size_t)i]];
@@ -529,10 +532,11 @@ static tessel_status fill_sector(gp *g, uint32_t R, gp_frame *f)
             g->cand[i].kept = 1, g->cand[i].key = -1.0;
     angle_criterion(g);
     fan_box(g, f, g->seq, g->seq_count);
-    st_ = tsl_gp_guard_collect(g, R, f, 1);
-    if (st_ != TESSEL_OK)
-        return st_;
-    return walk(g, R, f);
+    /* The held triangles are collected at the walk's first guard test. */
+    tsl_gp_guard_defer(g, R, f, 1);
+    st_ = walk(g, R, f);
+    g->guard_pending = 0;
+    return st_;
 }
 
 /* Sets R's state after it was a reference point (Invariant 2). */

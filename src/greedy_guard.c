@@ -187,16 +187,9 @@ static inline tessel_status collect_point(gp *g, const gp_gctx *c, uint32_t v, u
  * triangles are in the long-triangle grid. Each triangle is looked at once:
  * from the first of its vertices that lists its triangles (in the box, or
  * R) and passes point_test; the others must pass too. */
-tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone)
+void tsl_gp_guard_defer(gp *g, uint32_t R, const gp_frame *f, int use_cone)
 {
     double half = f->reach + f->delta;
-    g->stamp++;
-    if (g->stamp > PM_STAMP_MAX) {
-        memset(g->pmark, 0, g->n * sizeof *g->pmark);
-        if (g->tused)
-            memset(g->tstamp, 0, g->tused * sizeof *g->tstamp);
-        g->stamp = 1;
-    }
     g->gt_count = 0;
     gp_cone cone;
     memset(&cone, 0, sizeof cone);
@@ -223,6 +216,26 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
     g->cone = cone;
     double span = 2.0 * half + g->ell;
     g->fan_eps = 1e-9 * span * span;
+    g->guard_R = R;
+    g->guard_f = f;
+    g->guard_pending = 1;
+}
+
+tessel_status tsl_gp_guard_ready(gp *g)
+{
+    if (!g->guard_pending)
+        return TESSEL_OK;
+    g->guard_pending = 0;
+    uint32_t R = g->guard_R;
+    const gp_frame *f = g->guard_f;
+    double half = f->reach + f->delta;
+    g->stamp++;
+    if (g->stamp > PM_STAMP_MAX) {
+        memset(g->pmark, 0, g->n * sizeof *g->pmark);
+        if (g->tused)
+            memset(g->tstamp, 0, g->tused * sizeof *g->tstamp);
+        g->stamp = 1;
+    }
     gp_gctx c;
     c.cone = &g->cone;
     c.f = f;
@@ -294,6 +307,12 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
                 }
             }
     return TESSEL_OK;
+}
+
+tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone)
+{
+    tsl_gp_guard_defer(g, R, f, use_cone);
+    return tsl_gp_guard_ready(g);
 }
 
 /* Fan certificate: triangles N = (R, a, b) and O = (R, c, d) of R's fan

@@ -182,6 +182,12 @@ typedef struct gp {
     int empty_gap;        /* the last fill found no candidate between R's
                              boundary neighbours */
     gp_cone cone;         /* of the current reference point */
+    int guard_pending;    /* the collection for guard_R / guard_f is due
+                             (made at the first guard test: a reference
+                             point whose walk stops on geometry or topology
+                             alone needs none) */
+    uint32_t guard_R;
+    const struct gp_frame *guard_f;
     uint32_t *pmark;      /* per point: marks of the guard's collection */
     uint32_t *gpass;      /* guard: points whose triangles it lists */
     size_t gpass_cap;
@@ -388,6 +394,11 @@ int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3]);
  * [f->flo, f->fhi] around R (within f->reach of R) could meet; use_cone:
  * skip those the free-cone certificate rules out (R must have a fan). */
 tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use_cone);
+/* The same in two steps: the cone (which try_fan needs at once) now, the
+ * collection when tsl_gp_guard_ready is first called before a guard test
+ * (f must stay valid until then; no triangle may be added in between). */
+void tsl_gp_guard_defer(gp *g, uint32_t R, const gp_frame *f, int use_cone);
+tessel_status tsl_gp_guard_ready(gp *g);
 /* New triangle v meets no collected triangle beyond shared vertices/edges.
  * q1, q2: projections of v[1], v[2] on the plane of R = v[0] when v is one
  * of R's fan triangles (else NULL). */
