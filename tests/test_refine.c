@@ -320,6 +320,32 @@ static void test_pipeline_torus(void)
     tessel_cloud_free(&c);
 }
 
+static void test_pipeline_narrow_torus(void)
+{
+    /* A torus whose hole (0.16 across) is narrower than the clusters (up to
+     * 8 spacings, 0.24 here): with this seed the front on the
+     * representatives leaves holes around it (63 border edges), and the
+     * second front, with extra representatives there, closes them. The
+     * result is valid and closed; the torus's hole itself is below the
+     * resolution of the representatives and ends up spanned (genus 0). */
+    tessel_cloud c;
+    CHECK(surf_torus(&c, 0.5, 0.42, 0.03, 1) == TESSEL_OK);
+    surf_noise(&c, 0.015, 101);
+    tessel_smooth_recon_stats s;
+    tessel_mesh m;
+    CHECK(tessel_reconstruct_smooth(&c, NULL, NULL, &m, &s) == TESSEL_OK);
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(tessel_mesh_report_valid(&r) && r.self_intersections == 0 && r.components == 1,
+              "narrow torus: %zu components, %zu self-intersections", r.components,
+              r.self_intersections);
+    CHECK_MSG(s.front.border_edges == 0 && r.boundary_edges == 0,
+              "narrow torus: %zu border edges after the front, %zu in the result",
+              s.front.border_edges, r.boundary_edges);
+    CHECK(signed_volume(&m) > 0.0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
 static void test_pipeline_open(void)
 {
     /* Square with a round hole: two borders, one component. */
@@ -410,6 +436,7 @@ int main(void)
     test_refine_invalid();
     test_pipeline_sphere();
     test_pipeline_torus();
+    test_pipeline_narrow_torus();
     test_pipeline_open();
     test_pipeline_sheets();
     test_pipeline_threads_and_cancel();
