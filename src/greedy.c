@@ -635,7 +635,7 @@ static tessel_status process_pass(gp *g, uint32_t R, double scale)
     double b = dmin(scale * g->mu * m0, g->rho_cap);
     double core = dmax(b, dmax(re, rs));
     f.delta = tsl_gp_local_delta(g, R, core);
-    tessel_status st_ = tsl_gp_scan_box(g, R, core + f.delta, core);
+    tessel_status st_ = tsl_gp_scan_box(g, R, core);
     if (st_ != TESSEL_OK)
         return st_;
     if ((st_ = gather(g, b, m0, scale * g->mu, &f, e, s)) != TESSEL_OK)
@@ -707,7 +707,7 @@ static void fan_normal(const gp *g, uint32_t p, double n[3])
 static tessel_status orient_seed(gp *g, uint32_t R, double n[3], double reach)
 {
     double ref[3] = {0, 0, 0};
-    tessel_status s = tsl_gp_scan_box(g, R, reach, reach);
+    tessel_status s = tsl_gp_scan_box(g, R, reach);
     if (s != TESSEL_OK)
         return s;
     for (size_t i = 0; i < g->box_count + g->boxd_count; i++) {
@@ -768,7 +768,7 @@ static tessel_status seed(gp *g, uint32_t R)
         m = g->m_floor;
     gp_frame f;
     double b = g->mu * m;
-    if ((s = tsl_gp_scan_box(g, R, b + g->delta, b + g->delta)) != TESSEL_OK)
+    if ((s = tsl_gp_scan_box(g, R, b + g->delta)) != TESSEL_OK)
         return s;
     if ((s = gather(g, b, m, g->mu, &f, NONE, NONE)) != TESSEL_OK)
         return s;
@@ -789,12 +789,10 @@ static tessel_status seed(gp *g, uint32_t R)
         settle_dead(g, R, &g->sum.left_closed_in);
         return TESSEL_OK;
     }
-    /* Orientation from up to four spheres around; then the seed's own box
-     * again for the guard. */
-    if ((s = orient_seed(g, R, f.n, 4.0 * f.rho)) != TESSEL_OK ||
-        (s = tsl_gp_scan_box(g, R, f.reach + (f.delta = tsl_gp_local_delta(g, R, f.reach)),
-                             f.reach)) != TESSEL_OK)
+    /* Orientation from up to four spheres around. */
+    if ((s = orient_seed(g, R, f.n, 4.0 * f.rho)) != TESSEL_OK)
         return s;
+    f.delta = tsl_gp_local_delta(g, R, f.reach);
     frame_axes(&f, g->plane_axis);
     project_cands(g, &f, NONE, NONE);
     for (size_t i = 0; i < g->cand_count; i++)
@@ -913,9 +911,7 @@ static tessel_status try_ear(gp *g, uint32_t v, uint32_t u, uint32_t w, int *ok)
         f.fhi[a] = fmax(f.fhi[a], d[a]);
     }
     f.delta = tsl_gp_local_delta(g, v, f.reach);
-    tessel_status s = tsl_gp_scan_box(g, v, f.reach + f.delta, f.reach);
-    if (s == TESSEL_OK)
-        s = tsl_gp_guard_collect(g, v, &f, 0);
+    tessel_status s = tsl_gp_guard_collect(g, v, &f, 0);
     if (s != TESSEL_OK)
         return s;
     uint32_t tv[3] = {v, u, w};

@@ -80,9 +80,8 @@ static inline unsigned cone_flags(const gp_cone *c, uint32_t v, const double q[2
 }
 
 /* Per-point marks of one collection (g->pmark): the stamp above, then
- * whether the point was looked at from the box (and so lists its
- * triangles), whether it passes, and its CONE_* flags. */
-enum { PM_FLAGS = 15, PM_PASS = 16, PM_LISTS = 32, PM_SHIFT = 6 };
+ * whether the point passes and its CONE_* flags. */
+enum { PM_FLAGS = 15, PM_PASS = 16, PM_SHIFT = 6 };
 #define PM_STAMP_MAX (UINT32_MAX >> PM_SHIFT)
 
 /* Context of one collection. */
@@ -121,8 +120,7 @@ static inline unsigned point_test(const gp *g, const gp_gctx *c, uint32_t v, con
     return PM_PASS | cone_flags(c->cone, v, q);
 }
 
-/* The marks of a triangle vertex w: from the box pass, else computed (w lies
- * outside the box) and cached without PM_LISTS. */
+/* The marks of a triangle vertex w, computed once per collection. */
 static inline uint32_t vertex_marks(gp *g, const gp_gctx *c, uint32_t w)
 {
     uint32_t m = g->pmark[w];
@@ -135,16 +133,13 @@ static inline uint32_t vertex_marks(gp *g, const gp_gctx *c, uint32_t w)
     return m;
 }
 
-/* Adds held triangle t to the collection unless the cone certificate or
- * the boxes rule it out; flags: the AND of its vertices' cone flags. */
-static inline tessel_status guard_push(gp *g, const gp_gctx *c, uint32_t t, unsigned flags)
+/* Adds held triangle t (float box tl, th, known to overlap the new
+ * triangles' box) to the collection unless the cone certificate rules it
+ * out; flags: the AND of its vertices' cone flags. */
+static inline tessel_status guard_push(gp *g, const gp_gctx *c, uint32_t t, unsigned flags,
+                                       const float tl[3], const float th[3])
 {
     if (c->cone->on && flags)
-        return TESSEL_OK;
-    float tl[3], th[3];
-    tsl_gp_tri_box(g, g->tri[t].v, tl, th);
-    if (tl[0] > c->hi[0] || th[0] < c->lo[0] || tl[1] > c->hi[1] || th[1] < c->lo[1] ||
-        tl[2] > c->hi[2] || th[2] < c->lo[2])
         return TESSEL_OK;
     if (g->gt_count == g->gt_cap &&
         grow((void **)&g->gt, &g->gt_cap, g->gt_count + 1, sizeof *g->gt))
@@ -152,41 +147,37 @@ static inline tessel_status guard_push(gp *g, const gp_gctx *c, uint32_t t, unsi
     gp_gtri *e = &g->gt[g->gt_count++];
     e->t = t;
     e->fan = 0;
-    memcpy(e->lo, tl, sizeof tl);
-    memcpy(e->hi, th, sizeof th);
+    memcpy(e->lo, tl, 3 * sizeof *tl);
+    memcpy(e->hi, th, 3 * sizeof *th);
     return TESSEL_OK;
 }
 
-/* The short triangles of point v (which passed and lists its triangles)
- * whose other two vertices pass too and do not list them before v. */
-static inline tessel_status collect_point(gp *g, const gp_gctx *c, uint32_t v, unsigned fv)
+/* Held triangle t if its box overlaps the new triangles' box and its three
+ * vertices pass point_test. */
+static inline tessel_status guard_consider(gp *g, const gp_gctx *c, uint32_t t)
 {
-    for (uint32_t t = g->head[v]; t != NONE;) {
-        const gp_tri *T = &g->tri[t];
-        int k = tri_pos(T, v);
-        uint32_t cur = t;
-        t = T->next[k];
-        int j1 = k == 2 ? 0 : k + 1, j2 = k == 0 ? 2 : k - 1;
-        uint32_t m1 = vertex_marks(g, c, T->v[j1]);
-        if (!(m1 & PM_PASS) || (j1 < k && (m1 & PM_LISTS)))
-            continue;
-        uint32_t m2 = vertex_marks(g, c, T->v[j2]);
-        if (!(m2 & PM_PASS) || (j2 < k && (m2 & PM_LISTS)) || (g->tflag[cur] & TF_LONG))
-            continue;
-        tessel_status s = guard_push(g, c, cur, fv & m1 & m2 & PM_FLAGS);
-        if (s != TESSEL_OK)
-            return s;
-    }
-    return TESSEL_OK;
+    const gp_tri *T = &g->tri[t];
+    /* The box first (stored with the triangle). */
+    const float *tl = g->tbox + 6 * (size_t)t, *th = tl + 3;
+    if (tl[0] > c->hi[0] || th[0] < c->lo[0] || tl[1] > c->hi[1] || th[1] < c->lo[1] ||
+        tl[2] > c->hi[2] || th[2] < c->lo[2])
+        return TESSEL_OK;
+    unsigned fl = PM_PASS | PM_FLAGS;
+    for (int j = 0; j < 3 && (fl & PM_PASS); j++)
+        fl &= vertex_marks(g, c, T->v[j]);
+    if (!(fl & PM_PASS))
+        return TESSEL_OK;
+    return guard_push(g, c, t, fl & PM_FLAGS, tl, th);
 }
 
 /* Collects the held triangles that a new triangle in the box [flo, fhi]
  * (within f->reach of R) could meet and that the cone does not rule out.
- * A triangle whose edges are at most ell and that meets the box of
- * half-size reach has a vertex within delta of it, so in the box; longer
- * triangles are in the long-triangle grid. Each triangle is looked at once:
- * from the first of its vertices that lists its triangles (in the box, or
- * R) and passes point_test; the others must pass too. */
+ * A triangle whose edges are at most L meets that box only if its centroid
+ * lies within L / sqrt(3) of it (every point of a triangle is within
+ * L / sqrt(3) of its centroid), and L / sqrt(3) <= f->delta for the short
+ * triangles near R: those are found in the cells of the short-triangle grid
+ * that the box widened by f->delta overlaps, each listed once. Longer
+ * triangles are in the long-triangle grid. */
 void tsl_gp_guard_defer(gp *g, uint32_t R, const gp_frame *f, int use_cone)
 {
     double half = f->reach + f->delta;
@@ -248,33 +239,25 @@ tessel_status tsl_gp_guard_ready(gp *g)
         c.lo[k] = tsl_float_down((float)(c.r[k] + f->flo[k]));
         c.hi[k] = tsl_float_up((float)(c.r[k] + f->fhi[k]));
     }
-    /* Marks first (a triangle needs all three vertices to pass), listing
-     * the points that pass; R (not in its box) passes with every flag. */
-    if (grow((void **)&g->gpass, &g->gpass_cap, g->box_count + g->boxd_count + 1,
-             sizeof *g->gpass))
-        return TESSEL_ERR_NOMEM;
-    uint32_t *pass = g->gpass;
-    size_t np = 0;
-    g->pmark[R] = c.mark | PM_LISTS | PM_PASS | PM_FLAGS;
-    pass[np++] = R;
-    for (int part = 0; part < 2; part++) {
-        const gp_box *box = part ? g->boxd : g->box;
-        size_t count = part ? g->boxd_count : g->box_count;
-        for (size_t k = 0; k < count; k++) {
-            uint32_t v = box[k].idx;
-            if (g->head[v] == NONE)
-                continue;
-            unsigned m = point_test(g, &c, v, box[k].rel);
-            g->pmark[v] = c.mark | PM_LISTS | m;
-            if (m)
-                pass[np++] = v;
-        }
-    }
     tessel_status s;
-    for (size_t i = 0; i < np; i++) {
-        uint32_t v = pass[i];
-        if ((s = collect_point(g, &c, v, g->pmark[v] & PM_FLAGS)) != TESSEL_OK)
-            return s;
+    g->pmark[R] = c.mark | PM_PASS | PM_FLAGS;
+    if (g->sg_slots) {
+        double m = f->delta * (1.0 + 1e-6) + c.tiny;
+        uint32_t q0[3], q1[3];
+        for (int k = 0; k < 3; k++) {
+            q0[k] = sg_coord(g, (double)c.lo[k] - m, k);
+            q1[k] = sg_coord(g, (double)c.hi[k] + m, k);
+        }
+        for (uint32_t z = q0[2]; z <= q1[2]; z++)
+            for (uint32_t y = q0[1]; y <= q1[1]; y++)
+                for (uint32_t x = q0[0]; x <= q1[0]; x++) {
+                    size_t h = hg_find(g->sg_keys, g->sg_slots, lg_key(x, y, z));
+                    if (!g->sg_keys[h])
+                        continue;
+                    for (uint32_t t = g->sg_head[h]; t != NONE; t = g->tsg_next[t])
+                        if ((s = guard_consider(g, &c, t)) != TESSEL_OK)
+                            return s;
+                }
     }
     /* Long triangles of the cells the box overlaps, each once. */
     if (!g->lg_slots)
@@ -292,17 +275,7 @@ tessel_status tsl_gp_guard_ready(gp *g)
                     if (g->tstamp[t] == g->stamp)
                         continue;
                     g->tstamp[t] = g->stamp;
-                    const gp_tri *T = &g->tri[t];
-                    /* The box first: it needs only the coordinates. */
-                    float tl[3], th[3];
-                    tsl_gp_tri_box(g, T->v, tl, th);
-                    if (tl[0] > c.hi[0] || th[0] < c.lo[0] || tl[1] > c.hi[1] ||
-                        th[1] < c.lo[1] || tl[2] > c.hi[2] || th[2] < c.lo[2])
-                        continue;
-                    unsigned fl = PM_PASS | PM_FLAGS;
-                    for (int j = 0; j < 3; j++)
-                        fl &= vertex_marks(g, &c, T->v[j]);
-                    if ((fl & PM_PASS) && (s = guard_push(g, &c, t, fl & PM_FLAGS)) != TESSEL_OK)
+                    if ((s = guard_consider(g, &c, t)) != TESSEL_OK)
                         return s;
                 }
             }

@@ -121,14 +121,12 @@ static tessel_status build_dexels(gp *g, const double ext[3], double cell)
     return TESSEL_OK;
 }
 
-/* Collects into g->box (live) and g->boxd (completed) every point other
- * than R that is not dead and lies
- * in the axis-aligned box of half-size `half` around R (section 4.1, first
- * stage of the distance criterion). Completed points whose triangles have
- * all left memory cost nothing further. Beyond `core` (<= half) only points
- * with triangles that may reach into the box of half-size core are kept:
- * within their longest edge of it (the guard looks for nothing else). */
-tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
+/* Collects into g->box (live) and g->boxd (completed, with triangles)
+ * every point other than R that is not dead and lies in the axis-aligned
+ * box of half-size `half` around R (section 4.1, first stage of the
+ * distance criterion). Completed points whose triangles have all left
+ * memory cost nothing further. */
+tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half)
 {
     double c[3];
     pos(g, R, c);
@@ -140,7 +138,7 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
     const float lo_f = tsl_float_down((float)(c[ad] - half));
     const float hi_f = tsl_float_up((float)(c[ad] + half));
     const float cu = cf[au], cv = cf[av], cd = cf[ad];
-    const double shell = core + 1e-6 * half;
+    const double shell = half + 1e-6 * half;
     uint32_t iu0 = grid_coord(c[au] - half, g->glo[au], g->inv_cell, g->nu);
     uint32_t iu1 = grid_coord(c[au] + half, g->glo[au], g->inv_cell, g->nu);
     uint32_t iv0 = grid_coord(c[av] - half, g->glo[av], g->inv_cell, g->nv);
@@ -173,11 +171,13 @@ tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half, double core)
                 int s_i = st(g, i);
                 if (s_i == ST_DEAD)
                     continue;
-                if (s_i == ST_DONE || dinf > core) {
-                    uint32_t h = g->head[i];
-                    if (h == NONE && (s_i == ST_DONE || dinf > core))
+                /* Completed points without triangles are done with; a
+                 * point whose float distance rounds beyond half is kept
+                 * only if it has triangles near enough. */
+                if (s_i == ST_DONE || dinf > half) {
+                    if (g->head[i] == NONE)
                         continue;
-                    if (dinf > core && dinf - shell > (double)g->maxe[i] * (1.0 + 1e-6))
+                    if (dinf > half && dinf - shell > (double)g->maxe[i] * (1.0 + 1e-6))
                         continue;
                 }
                 gp_box *b;
@@ -214,7 +214,7 @@ tessel_status tsl_gp_nearest(gp *g, uint32_t i, int live_only, double start, dou
     for (double h = start;; h *= 2.0) {
         if (h > limit)
             h = limit;
-        tessel_status s = tsl_gp_scan_box(g, i, h, h);
+        tessel_status s = tsl_gp_scan_box(g, i, h);
         if (s != TESSEL_OK)
             return s;
         double best = INFINITY;
@@ -474,6 +474,73 @@ static void long_unregister(gp *g, uint32_t t)
             }
 }
 
+/* Doubles the short-triangle table (or creates it), dropping empty cells. */
+static tessel_status sg_rehash(gp *g)
+{
+    size_t slots = g->sg_slots ? 2 * g->sg_slots : 1024;
+    uint64_t *ok = g->sg_keys;
+    uint32_t *oh = g->sg_head;
+    size_t os = g->sg_slots;
+    g->sg_keys = tsl_calloc_array(slots, sizeof *g->sg_keys);
+    g->sg_head = tsl_alloc_array(slots, sizeof *g->sg_head);
+    if (!g->sg_keys || !g->sg_head) {
+        free(g->sg_keys);
+        free(g->sg_head);
+        g->sg_keys = ok;
+        g->sg_head = oh;
+        return TESSEL_ERR_NOMEM;
+    }
+    g->sg_slots = slots;
+    g->sg_used = 0;
+    for (size_t i = 0; i < os; i++) {
+        if (!ok[i] || oh[i] == NONE)
+            continue;
+        size_t h = hg_find(g->sg_keys, g->sg_slots, ok[i] - 1);
+        g->sg_keys[h] = ok[i];
+        g->sg_head[h] = oh[i];
+        g->sg_used++;
+    }
+    free(ok);
+    free(oh);
+    return TESSEL_OK;
+}
+
+/* Lists short triangle t in the cell of its centroid. */
+static tessel_status short_register(gp *g, uint32_t t)
+{
+    const uint32_t *v = g->tri[t].v;
+    uint32_t c[3];
+    for (int k = 0; k < 3; k++) {
+        double x = ((double)g->xyz[3 * (size_t)v[0] + (size_t)k] +
+                    (double)g->xyz[3 * (size_t)v[1] + (size_t)k] +
+                    (double)g->xyz[3 * (size_t)v[2] + (size_t)k]) / 3.0;
+        c[k] = sg_coord(g, x, k);
+    }
+    tessel_status s;
+    if (2 * (g->sg_used + 1) > g->sg_slots && (s = sg_rehash(g)) != TESSEL_OK)
+        return s;
+    uint64_t key = lg_key(c[0], c[1], c[2]);
+    size_t h = hg_find(g->sg_keys, g->sg_slots, key);
+    if (!g->sg_keys[h]) {
+        g->sg_keys[h] = key + 1;
+        g->sg_head[h] = NONE;
+        g->sg_used++;
+    }
+    g->tsg_key[t] = key;
+    g->tsg_next[t] = g->sg_head[h];
+    g->sg_head[h] = t;
+    return TESSEL_OK;
+}
+
+static void short_unregister(gp *g, uint32_t t)
+{
+    size_t h = hg_find(g->sg_keys, g->sg_slots, g->tsg_key[t]);
+    uint32_t *link = &g->sg_head[h];
+    while (*link != t)
+        link = &g->tsg_next[*link];
+    *link = g->tsg_next[t];
+}
+
 static tessel_status tri_alloc(gp *g, uint32_t *out)
 {
     uint32_t t = g->tfree;
@@ -500,6 +567,18 @@ static tessel_status tri_alloc(gp *g, uint32_t *out)
             if (!ns)
                 return TESSEL_ERR_NOMEM;
             g->tstamp = ns;
+            uint32_t *nn = realloc(g->tsg_next, cap * sizeof *nn);
+            if (!nn)
+                return TESSEL_ERR_NOMEM;
+            g->tsg_next = nn;
+            uint64_t *nk = realloc(g->tsg_key, cap * sizeof *nk);
+            if (!nk)
+                return TESSEL_ERR_NOMEM;
+            g->tsg_key = nk;
+            float *nbx = realloc(g->tbox, cap * 6 * sizeof *nbx);
+            if (!nbx)
+                return TESSEL_ERR_NOMEM;
+            g->tbox = nbx;
             g->tcap = cap;
         }
         t = (uint32_t)g->tused++;
@@ -526,6 +605,8 @@ static tessel_status tri_retire(gp *g, uint32_t t)
     }
     if (g->tflag[t] & TF_LONG)
         long_unregister(g, t);
+    else
+        short_unregister(g, t);
     for (int k = 0; k < 3; k++) {
         uint32_t v = T->v[k];
         uint32_t *link = &g->head[v];
@@ -669,6 +750,7 @@ tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
             g->label[v[k]] = lab;
     if (existing)
         g->tflag[t] |= TF_EXISTING;
+    tsl_gp_tri_box(g, v, g->tbox + 6 * (size_t)t, g->tbox + 6 * (size_t)t + 3);
     g->tblock[t] = (uint32_t)block_of(g, g->xyz + 3 * (size_t)a);
     double pa[3], pb[3], pc[3], d[3];
     pos(g, a, pa);
@@ -701,6 +783,8 @@ tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
         float *bl = &g->bmaxl[g->tblock[t]];
         if (lm > *bl)
             *bl = lm;
+        if ((s = short_register(g, t)) != TESSEL_OK)
+            return s;
     }
     g->talive++;
     g->created_since_sweep++;
@@ -785,6 +869,11 @@ void tsl_gp_free(gp *g)
     free(g->tstamp);
     free(g->lt_tri);
     free(g->lt_next);
+    free(g->sg_keys);
+    free(g->sg_head);
+    free(g->tsg_next);
+    free(g->tsg_key);
+    free(g->tbox);
     free(g->queue);
     free(g->seed_order);
     free(g->uf);
@@ -796,7 +885,6 @@ void tsl_gp_free(gp *g)
     free(g->hide);
     free(g->gt);
     free(g->pmark);
-    free(g->gpass);
     free(g->hn);
 }
 
@@ -1049,6 +1137,7 @@ tessel_status tsl_gp_init(gp *g)
     g->ell = 3.0 * spacing;
     g->delta = g->ell / sqrt(3.0);
     g->lg_inv = 1.0 / (2.0 * (g->mu * spacing + g->delta));
+    g->sg_inv = 1.0 / (SG_CELL * spacing);
 
     /* Exact duplicates (adjacent in dexel order): keep the first. */
     size_t ncols = (size_t)g->nu * g->nv;
