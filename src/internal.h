@@ -162,6 +162,31 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
                                         const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                         tessel_front_stats *stats);
 
+/* ---- the projector's own index (src/smooth.c), shared by the stages
+ * that search the same cloud ---- */
+
+/* The kd-tree over the projector's cloud, when that cloud's coordinates
+ * are `xyz` with `count` points (the same array the projector was made
+ * from); else NULL. */
+const tessel_index *tsl_projector_index(const tessel_projector *projector, const float *xyz,
+                                        size_t count);
+
+/* tessel_projector_create on the kd-tree `index` of cloud->xyz (built by
+ * the caller, borrowed: it must outlive the projector), or on its own
+ * kd-tree when index is NULL. */
+tessel_status tsl_projector_create_on(tessel_projector **projector, const tessel_cloud *cloud,
+                                     const tessel_smooth_params *params,
+                                     const tessel_index *index);
+
+/* tessel_representatives with a projector over `cloud` made by the caller
+ * (tessel_projector_create with the projection parameters of params). */
+tessel_status tsl_representatives_with(const tessel_cloud *cloud,
+                                       const tessel_clusters *clusters,
+                                       const tessel_simplify_params *params,
+                                       const tessel_projector *projector,
+                                       const tessel_callbacks *callbacks, tessel_cloud *out,
+                                       tessel_simplify_stats *stats);
+
 /* ---- neighbour search (src/kdtree.c) ---- */
 
 /* Writes the index's count point indices in its storage order (leaf by

@@ -1014,7 +1014,7 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
     rf r;
     memset(&r, 0, sizeof r);
     tessel_projector *own = NULL;
-    tessel_index *index = NULL;
+    tessel_index *own_index = NULL;
     r.nv = mesh->vertex_count;
     r.nt = mesh->triangle_count;
     r.cap_v = r.nv + 16;
@@ -1039,8 +1039,13 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
             goto done;
         projector = own;
     }
-    if ((st = tessel_index_build(&index, cloud->xyz, cloud->count)))
-        goto done;
+    /* The projector's kd-tree when it is over this cloud, else our own. */
+    const tessel_index *index = tsl_projector_index(projector, cloud->xyz, cloud->count);
+    if (!index) {
+        if ((st = tessel_index_build(&own_index, cloud->xyz, cloud->count)))
+            goto done;
+        index = own_index;
+    }
     round_ctx c;
     c.index = index;
     c.cloud = cloud;
@@ -1086,7 +1091,7 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
 done:
     if (stats)
         *stats = r.stats;
-    tessel_index_destroy(index);
+    tessel_index_destroy(own_index);
     tessel_projector_destroy(own);
     free(r.xyz);
     free(r.rgb);

@@ -49,10 +49,11 @@ static bool clusters_valid(const tessel_clusters *cl, size_t n)
     return true;
 }
 
-tessel_status tessel_representatives(const tessel_cloud *cloud, const tessel_clusters *clusters,
-                                     const tessel_simplify_params *params,
-                                     const tessel_callbacks *callbacks, tessel_cloud *out,
-                                     tessel_simplify_stats *stats)
+/* The arguments of tessel_representatives: the projection parameters to
+ * use (spacing from the clusters when not given) in *proj. */
+static tessel_status check_args(const tessel_cloud *cloud, const tessel_clusters *clusters,
+                                const tessel_simplify_params *params, tessel_cloud *out,
+                                tessel_simplify_stats *stats, tessel_smooth_params *proj)
 {
     if (!out)
         return TESSEL_ERR_INVALID_ARG;
@@ -65,15 +66,40 @@ tessel_status tessel_representatives(const tessel_cloud *cloud, const tessel_clu
         return TESSEL_ERR_TOO_FEW_POINTS;
     if (!clusters_valid(clusters, cloud->count))
         return TESSEL_ERR_INVALID_ARG;
-    tessel_simplify_params p = params ? *params : tessel_simplify_params_default();
-    tessel_smooth_params proj = p.projection;
-    if (proj.spacing == 0.0)
-        proj.spacing = clusters->spacing;
+    *proj = params ? params->projection : tessel_simplify_params_default().projection;
+    if (proj->spacing == 0.0)
+        proj->spacing = clusters->spacing;
+    return TESSEL_OK;
+}
 
-    tessel_projector *pr = NULL;
-    tessel_status st = tessel_projector_create(&pr, cloud, &proj);
+tessel_status tessel_representatives(const tessel_cloud *cloud, const tessel_clusters *clusters,
+                                     const tessel_simplify_params *params,
+                                     const tessel_callbacks *callbacks, tessel_cloud *out,
+                                     tessel_simplify_stats *stats)
+{
+    tessel_smooth_params proj;
+    tessel_status st = check_args(cloud, clusters, params, out, stats, &proj);
     if (st != TESSEL_OK)
         return st;
+    tessel_projector *pr = NULL;
+    if ((st = tessel_projector_create(&pr, cloud, &proj)) == TESSEL_OK)
+        st = tsl_representatives_with(cloud, clusters, params, pr, callbacks, out, stats);
+    tessel_projector_destroy(pr);
+    return st;
+}
+
+tessel_status tsl_representatives_with(const tessel_cloud *cloud,
+                                       const tessel_clusters *clusters,
+                                       const tessel_simplify_params *params,
+                                       const tessel_projector *pr,
+                                       const tessel_callbacks *callbacks, tessel_cloud *out,
+                                       tessel_simplify_stats *stats)
+{
+    tessel_smooth_params proj;
+    tessel_status st = check_args(cloud, clusters, params, out, stats, &proj);
+    if (st != TESSEL_OK)
+        return st;
+    tessel_simplify_params p = params ? *params : tessel_simplify_params_default();
 
     const size_t nc = clusters->count;
     const int with_rgb = cloud->rgb != NULL;
@@ -159,7 +185,6 @@ done:
     free(nrm);
     free(rgb);
     free(fit);
-    tessel_projector_destroy(pr);
     return st;
 }
 

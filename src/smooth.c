@@ -71,7 +71,8 @@ typedef struct fit_ctl {
 } fit_ctl;
 
 struct tessel_projector {
-    tessel_index *index;
+    const tessel_index *index; /* over xyz */
+    tessel_index *own;         /* index, when built here (else borrowed) */
     const float *xyz;
     const float *normals; /* orientation reference, may be NULL */
     size_t count;
@@ -717,8 +718,9 @@ static tessel_status check_cloud(const tessel_cloud *cloud)
     return TESSEL_OK;
 }
 
-tessel_status tessel_projector_create(tessel_projector **projector, const tessel_cloud *cloud,
-                                      const tessel_smooth_params *params)
+tessel_status tsl_projector_create_on(tessel_projector **projector, const tessel_cloud *cloud,
+                                     const tessel_smooth_params *params,
+                                     const tessel_index *index)
 {
     if (!projector)
         return TESSEL_ERR_INVALID_ARG;
@@ -736,11 +738,15 @@ tessel_status tessel_projector_create(tessel_projector **projector, const tessel
     tessel_projector *pr = calloc(1, sizeof *pr);
     if (!pr)
         return TESSEL_ERR_NOMEM;
-    st = tessel_index_build(&pr->index, cloud->xyz, cloud->count);
-    if (st != TESSEL_OK) {
-        free(pr);
-        return st;
+    if (!index) {
+        st = tessel_index_build(&pr->own, cloud->xyz, cloud->count);
+        if (st != TESSEL_OK) {
+            free(pr);
+            return st;
+        }
+        index = pr->own;
     }
+    pr->index = index;
     pr->xyz = cloud->xyz;
     pr->normals = cloud->normals;
     pr->count = cloud->count;
@@ -754,12 +760,26 @@ tessel_status tessel_projector_create(tessel_projector **projector, const tessel
     return TESSEL_OK;
 }
 
+tessel_status tessel_projector_create(tessel_projector **projector, const tessel_cloud *cloud,
+                                      const tessel_smooth_params *params)
+{
+    return tsl_projector_create_on(projector, cloud, params, NULL);
+}
+
 void tessel_projector_destroy(tessel_projector *projector)
 {
     if (!projector)
         return;
-    tessel_index_destroy(projector->index);
+    tessel_index_destroy(projector->own);
     free(projector);
+}
+
+const tessel_index *tsl_projector_index(const tessel_projector *projector, const float *xyz,
+                                        size_t count)
+{
+    if (!projector || projector->xyz != xyz || projector->count != count)
+        return NULL;
+    return projector->index;
 }
 
 double tessel_projector_spacing(const tessel_projector *projector)

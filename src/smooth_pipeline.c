@@ -177,9 +177,11 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
     float *extra = NULL, *extra_n = NULL;
     uint32_t *near = NULL;
     size_t n_extra = 0, cap_extra = 0, cap_extra_n = 0, cap_near = 0;
-    tessel_index *cix = NULL, *rix = NULL;
-    tessel_status st = TESSEL_ERR_NOMEM;
-    if (!keys || !parent || !bnext || !edges || !len || !reach || !cen)
+    /* The smoothed cloud's kd-tree is the projector's (made over it). */
+    const tessel_index *cix = tsl_projector_index(projector, smoothed->xyz, smoothed->count);
+    tessel_index *rix = NULL;
+    tessel_status st = cix ? TESSEL_ERR_NOMEM : TESSEL_ERR_INVALID_ARG;
+    if (!cix || !keys || !parent || !bnext || !edges || !len || !reach || !cen)
         goto done;
     for (size_t t = 0; t < nt; t++)
         for (int i = 0; i < 3; i++)
@@ -234,8 +236,7 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
          * border (its centroid, its farthest vertex). */
         const double *c = cen + 3 * r;
         double mean = len[r] / (double)edges[r], radius = reach[r] + mean;
-        if (!cix && ((st = tessel_index_build(&cix, smoothed->xyz, smoothed->count)) ||
-                     (st = tessel_index_build(&rix, reps->xyz, reps->count))))
+        if (!rix && (st = tessel_index_build(&rix, reps->xyz, reps->count)))
             break;
         float q[3] = {(float)c[0], (float)c[1], (float)c[2]};
         size_t found = tessel_index_radius(cix, q, (float)radius, NULL, NULL, 0);
@@ -310,7 +311,6 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
         *added = n_extra;
     }
 done:
-    tessel_index_destroy(cix);
     tessel_index_destroy(rix);
     free(keys);
     free(parent);
@@ -390,8 +390,25 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     s.cluster_diameter = p.simplify.cluster.max_diameter;
 
     t = now();
-    if ((st = tessel_simplify(&smoothed, &reps, &p.simplify, callbacks, &s.simplify)))
-        goto fail;
+    {
+        /* One kd-tree over the smoothed cloud serves the representatives'
+         * projector here, the refinement's and the hole step's. */
+        tessel_smooth_params q = p.smooth;
+        q.spacing = h;
+        tessel_projector *rp = NULL;
+        tessel_clusters cl = {0};
+        if (!(st = tessel_projector_create(&projector, &smoothed, &q)) &&
+            !(st = tessel_cluster(&smoothed, &p.simplify.cluster, callbacks, &cl)) &&
+            !(st = tsl_projector_create_on(
+                  &rp, &smoothed, &p.simplify.projection,
+                  tsl_projector_index(projector, smoothed.xyz, smoothed.count))))
+            st = tsl_representatives_with(&smoothed, &cl, &p.simplify, rp, callbacks, &reps,
+                                          &s.simplify);
+        tessel_projector_destroy(rp);
+        tessel_clusters_free(&cl);
+        if (st)
+            goto fail;
+    }
     s.seconds_simplify = now() - t;
     s.representatives = reps.count;
     if (reps.count < 3) {
@@ -418,9 +435,6 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
         size_t base = reps.count;
         tessel_mesh best = {0};
         tessel_front_stats best_stats = s.front;
-        tessel_smooth_params q = p.smooth;
-        q.spacing = h;
-        st = tessel_projector_create(&projector, &smoothed, &q);
         for (size_t f = 0; f < sizeof fractions / sizeof *fractions && !st; f++) {
             size_t added = 0;
             reps.count = base;
@@ -457,13 +471,9 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     s.seconds_front = now() - t;
 
     t = now();
-    if (p.refine.rounds > 0) {
-        tessel_smooth_params q = p.smooth;
-        q.spacing = h;
-        if ((!projector && (st = tessel_projector_create(&projector, &smoothed, &q))) ||
-            (st = tessel_refine(mesh, &smoothed, projector, &p.refine, callbacks, &s.refine)))
-            goto fail;
-    }
+    if (p.refine.rounds > 0 &&
+        (st = tessel_refine(mesh, &smoothed, projector, &p.refine, callbacks, &s.refine)))
+        goto fail;
     if ((st = star_normals(mesh)))
         goto fail;
     s.seconds_refine = now() - t;
