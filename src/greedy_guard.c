@@ -152,16 +152,21 @@ static inline tessel_status guard_push(gp *g, const gp_gctx *c, uint32_t t, unsi
     return TESSEL_OK;
 }
 
-/* Held triangle t if its box overlaps the new triangles' box and its three
+/* Whether held triangle t's stored box overlaps the new triangles' box (the
+ * first test: it rejects most and reads no vertex). */
+static inline int box_meets(const gp *g, const gp_gctx *c, uint32_t t)
+{
+    const float *tl = g->tbox + 6 * (size_t)t, *th = tl + 3;
+    return !(tl[0] > c->hi[0] || th[0] < c->lo[0] || tl[1] > c->hi[1] || th[1] < c->lo[1] ||
+             tl[2] > c->hi[2] || th[2] < c->lo[2]);
+}
+
+/* Held triangle t, whose box meets the new triangles' box, if its three
  * vertices pass point_test. */
-static inline tessel_status guard_consider(gp *g, const gp_gctx *c, uint32_t t)
+static tessel_status guard_consider(gp *g, const gp_gctx *c, uint32_t t)
 {
     const gp_tri *T = &g->tri[t];
-    /* The box first (stored with the triangle). */
     const float *tl = g->tbox + 6 * (size_t)t, *th = tl + 3;
-    if (tl[0] > c->hi[0] || th[0] < c->lo[0] || tl[1] > c->hi[1] || th[1] < c->lo[1] ||
-        tl[2] > c->hi[2] || th[2] < c->lo[2])
-        return TESSEL_OK;
     unsigned fl = PM_PASS | PM_FLAGS;
     for (int j = 0; j < 3 && (fl & PM_PASS); j++)
         fl &= vertex_marks(g, c, T->v[j]);
@@ -255,7 +260,7 @@ tessel_status tsl_gp_guard_ready(gp *g)
                     if (!g->sg_keys[h])
                         continue;
                     for (uint32_t t = g->sg_head[h]; t != NONE; t = g->tsg_next[t])
-                        if ((s = guard_consider(g, &c, t)) != TESSEL_OK)
+                        if (box_meets(g, &c, t) && (s = guard_consider(g, &c, t)) != TESSEL_OK)
                             return s;
                 }
     }
@@ -275,7 +280,7 @@ tessel_status tsl_gp_guard_ready(gp *g)
                     if (g->tstamp[t] == g->stamp)
                         continue;
                     g->tstamp[t] = g->stamp;
-                    if ((s = guard_consider(g, &c, t)) != TESSEL_OK)
+                    if (box_meets(g, &c, t) && (s = guard_consider(g, &c, t)) != TESSEL_OK)
                         return s;
                 }
             }
