@@ -46,7 +46,8 @@
  * then run eight floats to a vector instead of four. AVX2 alone, without
  * FMA, does the same additions and multiplications in the same order, so
  * the output is the same bits on every machine (checked on the noisy scans
- * against a build with -DTESSEL_NO_CLONES). */
+ * against a build with -DTESSEL_NO_CLONES, and by .ci/run on the bundled
+ * bunny). */
 #if defined(__x86_64__) && defined(__ELF__) && defined(__GNUC__) && !defined(TESSEL_NO_CLONES)
 #define TSL_CLONES __attribute__((target_clones("avx2", "default")))
 #else
