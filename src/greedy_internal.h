@@ -163,7 +163,6 @@ typedef struct gp {
     float *tbox;          /* per triangle: float box, lo[3] then hi[3] (read
                              by the guard's collection without touching the
                              vertices) */
-    uint64_t *tsg_key;    /* per triangle: its cell */
 
     /* breadth-first queue (ring) and seeds */
     uint32_t *queue;

@@ -474,10 +474,17 @@ static void long_unregister(gp *g, uint32_t t)
             }
 }
 
-/* Doubles the short-triangle table (or creates it), dropping empty cells. */
+/* Rebuilds the short-triangle table with room for four times its
+ * non-empty cells (the front leaves empty cells behind: the table follows
+ * the held band instead of growing with every cell ever used). */
 static tessel_status sg_rehash(gp *g)
 {
-    size_t slots = g->sg_slots ? 2 * g->sg_slots : 1024;
+    size_t live = 0;
+    for (size_t i = 0; i < g->sg_slots; i++)
+        live += g->sg_keys[i] && g->sg_head[i] != NONE;
+    size_t slots = 1024;
+    while (slots < 4 * (live + 1))
+        slots *= 2;
     uint64_t *ok = g->sg_keys;
     uint32_t *oh = g->sg_head;
     size_t os = g->sg_slots;
@@ -505,8 +512,8 @@ static tessel_status sg_rehash(gp *g)
     return TESSEL_OK;
 }
 
-/* Lists short triangle t in the cell of its centroid. */
-static tessel_status short_register(gp *g, uint32_t t)
+/* Key of the cell of short triangle t's centroid. */
+static uint64_t short_key(const gp *g, uint32_t t)
 {
     const uint32_t *v = g->tri[t].v;
     uint32_t c[3];
@@ -516,17 +523,22 @@ static tessel_status short_register(gp *g, uint32_t t)
                     (double)g->xyz[3 * (size_t)v[2] + (size_t)k]) / 3.0;
         c[k] = sg_coord(g, x, k);
     }
+    return lg_key(c[0], c[1], c[2]);
+}
+
+/* Lists short triangle t in the cell of its centroid. */
+static tessel_status short_register(gp *g, uint32_t t)
+{
     tessel_status s;
     if (2 * (g->sg_used + 1) > g->sg_slots && (s = sg_rehash(g)) != TESSEL_OK)
         return s;
-    uint64_t key = lg_key(c[0], c[1], c[2]);
+    uint64_t key = short_key(g, t);
     size_t h = hg_find(g->sg_keys, g->sg_slots, key);
     if (!g->sg_keys[h]) {
         g->sg_keys[h] = key + 1;
         g->sg_head[h] = NONE;
         g->sg_used++;
     }
-    g->tsg_key[t] = key;
     g->tsg_next[t] = g->sg_head[h];
     g->sg_head[h] = t;
     return TESSEL_OK;
@@ -534,7 +546,7 @@ static tessel_status short_register(gp *g, uint32_t t)
 
 static void short_unregister(gp *g, uint32_t t)
 {
-    size_t h = hg_find(g->sg_keys, g->sg_slots, g->tsg_key[t]);
+    size_t h = hg_find(g->sg_keys, g->sg_slots, short_key(g, t));
     uint32_t *link = &g->sg_head[h];
     while (*link != t)
         link = &g->tsg_next[*link];
@@ -571,10 +583,6 @@ static tessel_status tri_alloc(gp *g, uint32_t *out)
             if (!nn)
                 return TESSEL_ERR_NOMEM;
             g->tsg_next = nn;
-            uint64_t *nk = realloc(g->tsg_key, cap * sizeof *nk);
-            if (!nk)
-                return TESSEL_ERR_NOMEM;
-            g->tsg_key = nk;
             float *nbx = realloc(g->tbox, cap * 6 * sizeof *nbx);
             if (!nbx)
                 return TESSEL_ERR_NOMEM;
@@ -872,7 +880,6 @@ void tsl_gp_free(gp *g)
     free(g->sg_keys);
     free(g->sg_head);
     free(g->tsg_next);
-    free(g->tsg_key);
     free(g->tbox);
     free(g->queue);
     free(g->seed_order);
