@@ -371,8 +371,8 @@ tessel_status tsl_gp_nearest(gp *g, uint32_t i, int live_only, double start, dou
                              double *dist);
 /* The guard margin around R when every new triangle lies in the box of
  * half-size core around it: longest held short triangle edge nearby over
- * sqrt(3) (a triangle meeting that box has a vertex within it), at most
- * g->delta. */
+ * sqrt(3) (a short triangle meeting a box inside that one has its centroid
+ * within this margin of it), at most g->delta. */
 double tsl_gp_local_delta(const gp *g, uint32_t R, double core);
 /* Point i is no longer live (completed or left out). */
 void tsl_gp_point_settled(gp *g, uint32_t i);

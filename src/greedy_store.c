@@ -3,7 +3,9 @@
  * with axis-aligned boxes, section 4.1), the pool of held triangles with
  * each point's list and fan (link path), the retirement blocks that decide
  * when a triangle can leave memory (section 6: only triangles near the
- * front are kept), the long-triangle grid, and the set-up. */
+ * front are kept), the guard's grids of held triangles (short ones by
+ * centroid cell, long ones by every cell their box overlaps), and the
+ * set-up. */
 #include "greedy_internal.h"
 
 /* ---- bucketing: the dexel array (section 3) ---- */
