@@ -567,7 +567,8 @@ typedef enum tessel_greedy_plane {
 typedef struct tessel_greedy_params {
     double mu;             /* radius of the sphere of influence as a multiple
                               of m (section 4.1); the one essential
-                              parameter. Default 2.5, range [1.2, 10] */
+                              parameter. Default 2 (the paper and PCL use
+                              2.5-3; docs/greedy.md), range [1.2, 10] */
     double max_angle;      /* alpha, degrees: consecutive neighbours of R that
                               are farther apart than this (seen from R) are
                               not joined and R stays a boundary point
