@@ -1,8 +1,8 @@
 /* Private: a uniform grid of points sorted by cell (src/grid.c), the
- * neighbour structure of the smoothing passes (src/smooth.c). Cells are numbered by the Morton code of their integer
- * coordinates, so nearby cells are near in memory; each occupied cell is a
- * run of the sorted points, found through an open-addressing hash. Not
- * installed. */
+ * neighbour structure of the smoothing passes (src/smooth.c). Cells are
+ * numbered by the Morton code of their integer coordinates, so nearby
+ * cells are near in memory; each occupied cell is a run of the sorted
+ * points, found through an open-addressing hash. Not installed. */
 #ifndef TESSEL_GRID_H
 #define TESSEL_GRID_H
 

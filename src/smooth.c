@@ -28,10 +28,10 @@
  * same neighbours as the kd-tree, at a fraction of the cost. Later passes
  * reuse those neighbours at their new positions and take one more IRLS
  * step from the previous pass's normal (with the quadric: its height over
- * the plane across that normal, and its own normal at the point). Every output position depends only
- * on the previous pass's positions, so points are independent: OpenMP
- * loops with per-point output slots give the same bits for any thread
- * count. */
+ * the plane across that normal, and its own normal at the point). Every
+ * output position depends only on the previous pass's positions, so points
+ * are independent: OpenMP loops with per-point output slots give the same
+ * bits for any thread count. */
 #include "grid.h"
 
 #include <stdlib.h>
@@ -401,7 +401,8 @@ typedef struct frame_sums {
  * 15 moments of om u^i v^j (i + j <= 4), the 6 of om z u^i v^j (i + j <=
  * 2) and that of om z^2. Order of s: 1, u, v, uu, uv, vv, uuu, uuv, uvv,
  * vvv, uuuu, uuuv, uuvv, uvvv, vvvv, z, zu, zv, zuu, zuv, zvv, zz. */
-TSL_CLONES static void frame_sweep(fit_buf *b, const double n[3], double t, double inv_h, frame_sums *fs)
+TSL_CLONES static void frame_sweep(fit_buf *b, const double n[3], double t, double inv_h,
+                                   frame_sums *fs)
 {
     double a[3] = {0, 0, 0};
     a[fabs(n[0]) < 0.6 ? 0 : 1] = 1.0;
@@ -538,8 +539,8 @@ static bool warm_quadric(const fit_ctl *f, fit_buf *b, double n[3], double move[
  * Q is the foot point on the last plane the weights belong to, lifted by
  * the quadric's height over it (quadric on), or the foot point on the
  * final plane (the paper's operator). */
-TSL_CLONES static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *start, double n[3],
-                       double move[3], uint32_t *iterations)
+TSL_CLONES static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *start,
+                                  double n[3], double move[3], uint32_t *iterations)
 {
     if (b->m < f->min_neighbors)
         return false;
@@ -975,8 +976,8 @@ static inline size_t block_select(block *b, size_t m, int32_t tb)
  * *guess) picks a few; they are sorted as 64-bit keys (distance bits, which
  * order like the distances since they are >= 0, then block slot), equal
  * distances reordered by point index, and the first k kept. */
-TSL_CLONES static void topk_block(topk *t, block *b, const tsl_grid *g, const float *q, float r2max,
-                       float *guess)
+TSL_CLONES static void topk_block(topk *t, block *b, const tsl_grid *g, const float *q,
+                                  float r2max, float *guess)
 {
     const size_t m = b->m;
     const float qx = q[0], qy = q[1], qz = q[2];
@@ -1139,7 +1140,8 @@ static void count_fit(pass_count *c, bool fit, uint32_t its, uint32_t max_iterat
 /* First pass over the points of cell ci: finds the k nearest neighbours
  * within the cut-off (recorded for the later passes) and smooths. b is
  * scratch. */
-TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci, pass_count *pc)
+TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, size_t ci,
+                                   pass_count *pc)
 {
     const tsl_grid *g = x->g;
     const fit_ctl *f = x->f;
@@ -1226,7 +1228,8 @@ TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, siz
 
 /* A later pass for sorted positions [s0, s1): the first pass's neighbours
  * at their current positions. */
-TSL_CLONES static void refit_range(const pass_ctx *x, fit_buf *fb, size_t s0, size_t s1, pass_count *pc)
+TSL_CLONES static void refit_range(const pass_ctx *x, fit_buf *fb, size_t s0, size_t s1,
+                                   pass_count *pc)
 {
     const fit_ctl *f = x->f;
     const float *cur = x->cur_xyz;
