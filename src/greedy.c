@@ -931,8 +931,9 @@ static tessel_status try_ear(gp *g, uint32_t v, uint32_t u, uint32_t w, int *ok)
 /* Ear clipping of the loop L[0..k) (each entry's successor is the next):
  * the ear at L[i] is the triangle (L[i], L[i-1], L[i+1]); it must turn the
  * same way as L[i]'s fan (a convex corner; the last triangle has no choice)
- * and its new edge must not exceed lim. The smallest angle goes first. dry: only these tests, on a copy, to
- * learn whether the whole loop can be closed. */
+ * and its new edge must not exceed lim. The smallest angle goes first.
+ * dry: only these tests, on a copy, to learn whether the whole loop can be
+ * closed. */
 static tessel_status clip_loop(gp *g, uint32_t *L, size_t k, double lim, int dry, int *done)
 {
     *done = 0;

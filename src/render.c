@@ -119,7 +119,8 @@ typedef struct viewport {
 
 static inline void put_pixel(viewport *v, int x, int y, const uint8_t c[3])
 {
-    uint8_t *p = v->rgb + (size_t)(v->y0 + (uint32_t)y) * v->stride + 3 * (size_t)(v->x0 + (uint32_t)x);
+    size_t row = (size_t)(v->y0 + (uint32_t)y), col = (size_t)(v->x0 + (uint32_t)x);
+    uint8_t *p = v->rgb + row * v->stride + 3 * col;
     p[0] = c[0];
     p[1] = c[1];
     p[2] = c[2];
