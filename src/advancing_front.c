@@ -575,38 +575,62 @@ static int sector_side(double pd, double dq, double lp, double ld, double lq)
     return out_a || out_b ? -1 : 0;
 }
 
-/* The paper's projection test for two triangles X and E projected onto the
- * plane with unit normal nrm (facing it), sharing the vertex at position ix
- * of X and ie of E (ix = -1: sharing none). Disjoint projections also mean
- * disjoint triangles in space (beyond the shared vertex), so PROJ_APART
- * spares the exact test. */
-static int projected_relation(const double *px[3], const double *pe[3], int ix, int ie,
-                              const double nrm[3])
+/* X's sector at one of its vertices in that vertex's tangent plane (unit
+ * normal nrm): its two edge vectors, their squared projected lengths and
+ * whether X is folded there. It depends on X and the vertex only, so it is
+ * computed once per new triangle and vertex, not once per neighbour. */
+typedef struct af_sector {
+    double p1[3], q1[3];
+    double lp1, lq1;
+    bool folded;
+    bool ready;
+} af_sector;
+
+static void sector_of(const double *px[3], int ix, const double nrm[3], af_sector *sec)
 {
-    if (ix >= 0) {
-        /* Sectors around the shared vertex: apart when every bounding ray
-         * of each is clearly outside the other (both are narrower than pi,
-         * so neither can contain the other). */
-        const double *o = px[ix];
-        double p1[3], q1[3], p2[3], q2[3];
-        tsl_sub(px[(ix + 1) % 3], o, p1);
-        tsl_sub(px[(ix + 2) % 3], o, q1);
-        tsl_sub(pe[(ie + 1) % 3], o, p2);
-        tsl_sub(pe[(ie + 2) % 3], o, q2);
-        if (det_n(nrm, p1, q1) <= 0.0 || det_n(nrm, p2, q2) <= 0.0)
-            return PROJ_OVERLAP; /* folded in this projection */
-        double lp1 = len2_n(nrm, p1), lq1 = len2_n(nrm, q1);
-        double lp2 = len2_n(nrm, p2), lq2 = len2_n(nrm, q2);
-        double d_p1p2 = det_n(nrm, p1, p2), d_p1q2 = det_n(nrm, p1, q2);
-        double d_q1p2 = det_n(nrm, q1, p2), d_q1q2 = det_n(nrm, q1, q2);
-        int s1 = sector_side(d_p1p2, -d_q1p2, lp1, lp2, lq1); /* p2 in X */
-        int s2 = sector_side(d_p1q2, -d_q1q2, lp1, lq2, lq1); /* q2 in X */
-        int s3 = sector_side(-d_p1p2, d_p1q2, lp2, lp1, lq2); /* p1 in E */
-        int s4 = sector_side(-d_q1p2, d_q1q2, lp2, lq1, lq2); /* q1 in E */
-        if (s1 > 0 || s2 > 0 || s3 > 0 || s4 > 0)
-            return PROJ_OVERLAP;
-        return s1 < 0 && s2 < 0 && s3 < 0 && s4 < 0 ? PROJ_APART : PROJ_UNSURE;
-    }
+    const double *o = px[ix];
+    tsl_sub(px[(ix + 1) % 3], o, sec->p1);
+    tsl_sub(px[(ix + 2) % 3], o, sec->q1);
+    sec->folded = det_n(nrm, sec->p1, sec->q1) <= 0.0;
+    sec->lp1 = len2_n(nrm, sec->p1);
+    sec->lq1 = len2_n(nrm, sec->q1);
+    sec->ready = true;
+}
+
+/* The paper's projection test for two triangles X and E sharing the vertex
+ * at position ix of X and ie of E, projected onto the vertex's tangent
+ * plane (unit normal nrm, facing it; sec = X's sector there). Sectors
+ * around the shared vertex: apart when every bounding ray of each is
+ * clearly outside the other (both are narrower than pi, so neither can
+ * contain the other). Disjoint projections also mean disjoint triangles in
+ * space (beyond the shared vertex), so PROJ_APART spares the exact test. */
+static int sector_relation(const af_sector *sec, const double *px[3], const double *pe[3],
+                           int ix, int ie, const double nrm[3])
+{
+    const double *o = px[ix];
+    const double *p1 = sec->p1, *q1 = sec->q1;
+    double p2[3], q2[3];
+    tsl_sub(pe[(ie + 1) % 3], o, p2);
+    tsl_sub(pe[(ie + 2) % 3], o, q2);
+    if (sec->folded || det_n(nrm, p2, q2) <= 0.0)
+        return PROJ_OVERLAP; /* folded in this projection */
+    double lp1 = sec->lp1, lq1 = sec->lq1;
+    double lp2 = len2_n(nrm, p2), lq2 = len2_n(nrm, q2);
+    double d_p1p2 = det_n(nrm, p1, p2), d_p1q2 = det_n(nrm, p1, q2);
+    double d_q1p2 = det_n(nrm, q1, p2), d_q1q2 = det_n(nrm, q1, q2);
+    int s1 = sector_side(d_p1p2, -d_q1p2, lp1, lp2, lq1); /* p2 in X */
+    int s2 = sector_side(d_p1q2, -d_q1q2, lp1, lq2, lq1); /* q2 in X */
+    int s3 = sector_side(-d_p1p2, d_p1q2, lp2, lp1, lq2); /* p1 in E */
+    int s4 = sector_side(-d_q1p2, d_q1q2, lp2, lq1, lq2); /* q1 in E */
+    if (s1 > 0 || s2 > 0 || s3 > 0 || s4 > 0)
+        return PROJ_OVERLAP;
+    return s1 < 0 && s2 < 0 && s3 < 0 && s4 < 0 ? PROJ_APART : PROJ_UNSURE;
+}
+
+/* The same test for triangles sharing no vertex, projected onto the plane
+ * with unit normal nrm: a separating axis among the six edges. */
+static int projected_relation(const double *px[3], const double *pe[3], const double nrm[3])
+{
     double u[3], v[3], x[3][2], y[3][2];
     plane_frame(nrm, u, v);
     for (int i = 0; i < 3; i++) {
@@ -701,8 +725,10 @@ static double min_cos_angle(const af_tri *x)
 
 /* True when the new triangle x cannot coexist with the existing or pending
  * triangle with vertex ids ev, coordinates pe and unit normal ne. star[i]
- * is the tangent plane normal at x's vertex i. */
-static bool conflict(const af_tri *x, const double star[3][3], const uint32_t ev[3],
+ * is the tangent plane normal at x's vertex i, sec[i] x's sector there
+ * (filled on first use), xlo/xhi x's bounding box. */
+static bool conflict(const af_tri *x, const double star[3][3], af_sector sec[3],
+                     const double xlo[3], const double xhi[3], const uint32_t ev[3],
                      const double *pe[3], const double ne[3])
 {
     const double *px[3] = {x->p[0], x->p[1], x->p[2]};
@@ -732,8 +758,7 @@ static bool conflict(const af_tri *x, const double star[3][3], const uint32_t ev
     if (shared == 0) {
         double margin = 0.5 * x->maxlen;
         for (int c = 0; c < 3; c++) {
-            double lo = dmin(px[0][c], dmin(px[1][c], px[2][c]));
-            double hi = dmax(px[0][c], dmax(px[1][c], px[2][c]));
+            double lo = xlo[c], hi = xhi[c];
             double elo = dmin(pe[0][c], dmin(pe[1][c], pe[2][c]));
             double ehi = dmax(pe[0][c], dmax(pe[1][c], pe[2][c]));
             if (ehi < lo - margin || elo > hi + margin)
@@ -749,8 +774,11 @@ static bool conflict(const af_tri *x, const double star[3][3], const uint32_t ev
         /* The paper's test: the triangle against the star of the shared
          * vertex, in the vertex's tangent plane (star normal). */
         const double *nrm = star[sx[0]];
-        if (tsl_dot(nrm, x->n) > 0.1 && tsl_dot(nrm, ne) > 0.1)
-            rel = projected_relation(px, pe, sx[0], se[0], nrm);
+        if (tsl_dot(nrm, x->n) > 0.1 && tsl_dot(nrm, ne) > 0.1) {
+            if (!sec[sx[0]].ready)
+                sector_of(px, sx[0], nrm, &sec[sx[0]]);
+            rel = sector_relation(&sec[sx[0]], px, pe, sx[0], se[0], nrm);
+        }
     } else if (d > 0.0) {
         /* Sharing nothing: in the plane bisecting both normals, when close
          * in height (farther, overlapping projections are another layer). */
@@ -772,7 +800,7 @@ static bool conflict(const af_tri *x, const double star[3][3], const uint32_t ev
         if (tsl_dot(delta, delta) - h * h > reach * reach)
             rel = PROJ_APART;
         else if (near || touches)
-            rel = projected_relation(px, pe, -1, -1, nrm);
+            rel = projected_relation(px, pe, nrm);
         if (rel == PROJ_OVERLAP && !near)
             rel = PROJ_UNSURE;
     }
@@ -829,8 +857,13 @@ static tessel_status check_triangle(af *s, const af_tri *x, const af_tri *other,
                 star[i][c] = x->n[c];
     }
     const double *px[3] = {x->p[0], x->p[1], x->p[2]};
-    double lo[3], hi[3];
-    tri_box(px, lo, hi);
+    double lo[3], hi[3], xlo[3], xhi[3];
+    tri_box(px, xlo, xhi);
+    memcpy(lo, xlo, sizeof lo);
+    memcpy(hi, xhi, sizeof hi);
+    af_sector sec[3];
+    for (int i = 0; i < 3; i++)
+        sec[i].ready = false;
     /* The projection test looks half an edge above and below. */
     double margin = 0.5 * x->maxlen;
     for (int i = 0; i < 3; i++) {
@@ -853,12 +886,12 @@ static tessel_status check_triangle(af *s, const af_tri *x, const af_tri *other,
         for (int j = 0; j < 3; j++)
             point(s, ev[j], q[j]);
         const double *pe[3] = {q[0], q[1], q[2]};
-        if (conflict(x, star, ev, pe, ne))
+        if (conflict(x, star, sec, xlo, xhi, ev, pe, ne))
             return TESSEL_OK;
     }
     if (other) {
         const double *pe[3] = {other->p[0], other->p[1], other->p[2]};
-        if (conflict(x, star, other->v, pe, other->n))
+        if (conflict(x, star, sec, xlo, xhi, other->v, pe, other->n))
             return TESSEL_OK;
     }
     *ok = true;
