@@ -268,6 +268,10 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
         if (tsl_grow((void **)&g->stamp, &g->stamp_cap, (size_t)tri + 1, sizeof *g->stamp))
             return TESSEL_ERR_NOMEM;
         memset(g->stamp + old, 0, (g->stamp_cap - old) * sizeof *g->stamp);
+        /* A query finds each id at most once: room for every id now, so
+         * queries never grow the result. */
+        if (tsl_grow((void **)&g->found, &g->found_cap, g->stamp_cap, sizeof *g->found))
+            return TESSEL_ERR_NOMEM;
     }
     for (int32_t x = c0[0]; x <= c1[0]; x++)
         for (int32_t y = c0[1]; y <= c1[1]; y++)
@@ -328,10 +332,6 @@ tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double
                     if (g->stamp[t] == g->stamp_now)
                         continue;
                     g->stamp[t] = g->stamp_now;
-                    if (g->found_count + 1 > g->found_cap &&
-                        tsl_grow((void **)&g->found, &g->found_cap, g->found_count + 1,
-                                 sizeof *g->found))
-                        return TESSEL_ERR_NOMEM;
                     g->found[g->found_count++] = t;
                 }
             }
@@ -726,10 +726,11 @@ static double min_cos_angle(const af_tri *x)
 /* True when the new triangle x cannot coexist with the existing or pending
  * triangle with vertex ids ev, coordinates pe and unit normal ne. star[i]
  * is the tangent plane normal at x's vertex i, sec[i] x's sector there
- * (filled on first use), xlo/xhi x's bounding box. */
+ * (filled on first use), xlo/xhi x's bounding box, elo/ehi E's. */
 static bool conflict(const af_tri *x, const double star[3][3], af_sector sec[3],
                      const double xlo[3], const double xhi[3], const uint32_t ev[3],
-                     const double *pe[3], const double ne[3])
+                     const double *pe[3], const double elo[3], const double ehi[3],
+                     const double ne[3])
 {
     const double *px[3] = {x->p[0], x->p[1], x->p[2]};
     int shared = 0, sx[3], se[3];
@@ -759,11 +760,9 @@ static bool conflict(const af_tri *x, const double star[3][3], af_sector sec[3],
         double margin = 0.5 * x->maxlen;
         for (int c = 0; c < 3; c++) {
             double lo = xlo[c], hi = xhi[c];
-            double elo = dmin(pe[0][c], dmin(pe[1][c], pe[2][c]));
-            double ehi = dmax(pe[0][c], dmax(pe[1][c], pe[2][c]));
-            if (ehi < lo - margin || elo > hi + margin)
+            if (ehi[c] < lo - margin || elo[c] > hi + margin)
                 return false;
-            if (ehi < lo || elo > hi)
+            if (ehi[c] < lo || elo[c] > hi)
                 touches = false;
         }
     }
@@ -883,15 +882,20 @@ static tessel_status check_triangle(af *s, const af_tri *x, const af_tri *other,
             continue;
         const uint32_t *ev = s->tri + 3 * (size_t)t;
         double q[3][3], ne[3] = {info->n[0], info->n[1], info->n[2]};
+        /* The stored box is exact (float corners). */
+        double elo[3] = {info->lo[0], info->lo[1], info->lo[2]};
+        double ehi[3] = {info->hi[0], info->hi[1], info->hi[2]};
         for (int j = 0; j < 3; j++)
             point(s, ev[j], q[j]);
         const double *pe[3] = {q[0], q[1], q[2]};
-        if (conflict(x, star, sec, xlo, xhi, ev, pe, ne))
+        if (conflict(x, star, sec, xlo, xhi, ev, pe, elo, ehi, ne))
             return TESSEL_OK;
     }
     if (other) {
         const double *pe[3] = {other->p[0], other->p[1], other->p[2]};
-        if (conflict(x, star, sec, xlo, xhi, other->v, pe, other->n))
+        double elo[3], ehi[3];
+        tri_box(pe, elo, ehi);
+        if (conflict(x, star, sec, xlo, xhi, other->v, pe, elo, ehi, other->n))
             return TESSEL_OK;
     }
     *ok = true;
