@@ -266,6 +266,21 @@ static void test_representatives(void)
     CHECK(r2.count == r.count && memcmp(r2.xyz, r.xyz, r.count * 3 * sizeof(float)) == 0);
     tessel_cloud_free(&r2);
 
+    /* With a projector made outside, on another projector's kd-tree (the
+     * pipeline's way): the same representatives. */
+    tessel_projector *lender = NULL, *pr = NULL;
+    tessel_smooth_params other = tessel_smooth_params_default();
+    other.spacing = st.spacing;
+    CHECK(tessel_projector_create(&lender, &c, &other) == TESSEL_OK);
+    CHECK(tsl_projector_create_on(&pr, &c, &p.projection,
+                                  tsl_projector_index(lender, c.xyz, c.count)) == TESSEL_OK);
+    CHECK(tsl_representatives_with(&c, &cl, &p, pr, NULL, &r2, NULL) == TESSEL_OK);
+    CHECK(r2.count == r.count && memcmp(r2.xyz, r.xyz, r.count * 3 * sizeof(float)) == 0 &&
+          memcmp(r2.normals, r.normals, r.count * 3 * sizeof(float)) == 0);
+    tessel_cloud_free(&r2);
+    tessel_projector_destroy(pr);
+    tessel_projector_destroy(lender);
+
     /* Thread count does not matter. */
     p.projection.threads = 1;
     CHECK(tessel_representatives(&c, &cl, &p, NULL, &r2, NULL) == TESSEL_OK);

@@ -1,6 +1,7 @@
 /* Robust smoothing (src/smooth.c): noisy plane and sphere with known
  * surfaces, robustness to outliers, sharp edges of a cube, the projector,
  * independence from thread count and input order, argument checks. */
+#include "internal.h"
 #include "tessel.h"
 #include "test.h"
 
@@ -430,6 +431,47 @@ static void test_projector(void)
     tessel_cloud_free(&plane);
 }
 
+/* A projector on a borrowed kd-tree (the pipeline shares one over the
+ * smoothed cloud) projects to the same bits as one with its own tree, and
+ * gives out its tree only for the cloud it was made from. */
+static void test_projector_shared_index(void)
+{
+    rng_state = 7;
+    tessel_cloud plane;
+    make_plane(&plane, 40, 0.02);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    tessel_projector *own = NULL, *other = NULL, *borrowed = NULL;
+    CHECK(tessel_projector_create(&own, &plane, &p) == TESSEL_OK);
+    const tessel_index *ix = tsl_projector_index(own, plane.xyz, plane.count);
+    CHECK(ix != NULL);
+    CHECK(tsl_projector_index(own, plane.xyz, plane.count - 1) == NULL);
+    CHECK(tsl_projector_index(own, plane.xyz + 3, plane.count) == NULL);
+    CHECK(tsl_projector_index(NULL, plane.xyz, plane.count) == NULL);
+    /* Other fit parameters, same tree. */
+    p.k = 16;
+    p.sigma_w = 1.5;
+    CHECK(tessel_projector_create(&other, &plane, &p) == TESSEL_OK);
+    CHECK(tsl_projector_create_on(&borrowed, &plane, &p, ix) == TESSEL_OK);
+    CHECK(tsl_projector_index(borrowed, plane.xyz, plane.count) == ix);
+    size_t differ = 0;
+    for (int i = 0; i < 200; i++) {
+        float q[3] = {(float)urand(), (float)urand(), (float)(0.05 * (urand() - 0.5))};
+        float a[3], b[3], na[3], nb[3];
+        tessel_status sa = tessel_project(other, q, a, na, NULL);
+        tessel_status sb = tessel_project(borrowed, q, b, nb, NULL);
+        differ += sa != sb || memcmp(a, b, sizeof a) != 0 || memcmp(na, nb, sizeof na) != 0;
+    }
+    CHECK_MSG(differ == 0, "%zu of 200 projections differ", differ);
+    /* The borrowed tree outlives the borrower: destroy the borrower first,
+     * then its lender still works. */
+    tessel_projector_destroy(borrowed);
+    float q[3] = {0.5f, 0.5f, 0.0f}, o[3];
+    CHECK(tessel_project(own, q, o, NULL, NULL) == TESSEL_OK);
+    tessel_projector_destroy(other);
+    tessel_projector_destroy(own);
+    tessel_cloud_free(&plane);
+}
+
 /* A smoothing pass finds neighbours with its own grid; the projector uses
  * the kd-tree. Both must give the same neighbours, hence the same bits, on
  * a cloud with uneven density (sparse parts need the outer ring of cells,
@@ -733,6 +775,7 @@ int main(void)
     test_cube_edges();
     test_threads_and_order();
     test_projector();
+    test_projector_shared_index();
     test_pass_matches_projector();
     test_quadric();
     test_lattice_ties();
