@@ -72,33 +72,16 @@ static tessel_status check_args(const tessel_cloud *cloud, const tessel_clusters
     return TESSEL_OK;
 }
 
-tessel_status tessel_representatives(const tessel_cloud *cloud, const tessel_clusters *clusters,
+/* One representative per cluster: its centroid projected by pr (arguments
+ * checked by the caller). */
+static tessel_status representatives(const tessel_cloud *cloud, const tessel_clusters *clusters,
                                      const tessel_simplify_params *params,
+                                     const tessel_smooth_params *proj,
+                                     const tessel_projector *pr,
                                      const tessel_callbacks *callbacks, tessel_cloud *out,
                                      tessel_simplify_stats *stats)
 {
-    tessel_smooth_params proj;
-    tessel_status st = check_args(cloud, clusters, params, out, stats, &proj);
-    if (st != TESSEL_OK)
-        return st;
-    tessel_projector *pr = NULL;
-    if ((st = tessel_projector_create(&pr, cloud, &proj)) == TESSEL_OK)
-        st = tsl_representatives_with(cloud, clusters, params, pr, callbacks, out, stats);
-    tessel_projector_destroy(pr);
-    return st;
-}
-
-tessel_status tsl_representatives_with(const tessel_cloud *cloud,
-                                       const tessel_clusters *clusters,
-                                       const tessel_simplify_params *params,
-                                       const tessel_projector *pr,
-                                       const tessel_callbacks *callbacks, tessel_cloud *out,
-                                       tessel_simplify_stats *stats)
-{
-    tessel_smooth_params proj;
-    tessel_status st = check_args(cloud, clusters, params, out, stats, &proj);
-    if (st != TESSEL_OK)
-        return st;
+    tessel_status st = TESSEL_OK;
     tessel_simplify_params p = params ? *params : tessel_simplify_params_default();
 
     const size_t nc = clusters->count;
@@ -112,7 +95,7 @@ tessel_status tsl_representatives_with(const tessel_cloud *cloud,
         goto done;
     }
 
-    int threads = tsl_threads(proj.threads);
+    int threads = tsl_threads(proj->threads);
     (void)threads;
     for (size_t lo = 0; lo < nc; lo += SIMPLIFY_CHUNK) {
         st = tsl_progress(callbacks, "representatives", (double)lo / (double)nc);
@@ -186,6 +169,36 @@ done:
     free(rgb);
     free(fit);
     return st;
+}
+
+tessel_status tessel_representatives(const tessel_cloud *cloud, const tessel_clusters *clusters,
+                                     const tessel_simplify_params *params,
+                                     const tessel_callbacks *callbacks, tessel_cloud *out,
+                                     tessel_simplify_stats *stats)
+{
+    tessel_smooth_params proj;
+    tessel_status st = check_args(cloud, clusters, params, out, stats, &proj);
+    if (st != TESSEL_OK)
+        return st;
+    tessel_projector *pr = NULL;
+    if ((st = tessel_projector_create(&pr, cloud, &proj)) == TESSEL_OK)
+        st = representatives(cloud, clusters, params, &proj, pr, callbacks, out, stats);
+    tessel_projector_destroy(pr);
+    return st;
+}
+
+tessel_status tsl_representatives_with(const tessel_cloud *cloud,
+                                       const tessel_clusters *clusters,
+                                       const tessel_simplify_params *params,
+                                       const tessel_projector *pr,
+                                       const tessel_callbacks *callbacks, tessel_cloud *out,
+                                       tessel_simplify_stats *stats)
+{
+    tessel_smooth_params proj;
+    tessel_status st = check_args(cloud, clusters, params, out, stats, &proj);
+    if (st != TESSEL_OK)
+        return st;
+    return representatives(cloud, clusters, params, &proj, pr, callbacks, out, stats);
 }
 
 tessel_status tessel_simplify(const tessel_cloud *cloud, tessel_cloud *out,
