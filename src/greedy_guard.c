@@ -246,7 +246,7 @@ tessel_status tsl_gp_guard_ready(gp *g)
     }
     tessel_status s;
     g->pmark[R] = c.mark | PM_PASS | PM_FLAGS;
-    if (g->sg_slots) {
+    if (g->sg.slots) {
         double m = f->delta * (1.0 + 1e-6) + c.tiny;
         uint32_t q0[3], q1[3];
         for (int k = 0; k < 3; k++) {
@@ -256,26 +256,26 @@ tessel_status tsl_gp_guard_ready(gp *g)
         for (uint32_t z = q0[2]; z <= q1[2]; z++)
             for (uint32_t y = q0[1]; y <= q1[1]; y++)
                 for (uint32_t x = q0[0]; x <= q1[0]; x++) {
-                    size_t h = hg_find(g->sg_keys, g->sg_slots, lg_key(x, y, z));
-                    if (!g->sg_keys[h])
+                    size_t h = cells_find(&g->sg, lg_key(x, y, z));
+                    if (!g->sg.keys[h])
                         continue;
-                    for (uint32_t t = g->sg_head[h]; t != NONE; t = g->tsg_next[t])
+                    for (uint32_t t = g->sg.head[h]; t != NONE; t = g->tsg_next[t])
                         if (box_meets(g, &c, t) && (s = guard_consider(g, &c, t)) != TESSEL_OK)
                             return s;
                 }
     }
     /* Long triangles of the cells the box overlaps, each once. */
-    if (!g->lg_slots)
+    if (!g->lg.slots)
         return TESSEL_OK;
     uint32_t c0[3], c1[3];
     tsl_gp_lg_cells(g, c.lo, c.hi, c0, c1);
     for (uint32_t z = c0[2]; z <= c1[2]; z++)
         for (uint32_t y = c0[1]; y <= c1[1]; y++)
             for (uint32_t x = c0[0]; x <= c1[0]; x++) {
-                size_t h = lg_find(g, lg_key(x, y, z));
-                if (!g->lg_keys[h])
+                size_t h = cells_find(&g->lg, lg_key(x, y, z));
+                if (!g->lg.keys[h])
                     continue;
-                for (uint32_t e = g->lg_head[h]; e != NONE; e = g->lt_next[e]) {
+                for (uint32_t e = g->lg.head[h]; e != NONE; e = g->lt_next[e]) {
                     uint32_t t = g->lt_tri[e];
                     if (g->tstamp[t] == g->stamp)
                         continue;

@@ -91,6 +91,15 @@ typedef struct gp_cone {
     double eps;       /* margin for the rounding of projections */
 } gp_cone;
 
+/* A hashed grid of cells, each the head of a list whose links live
+ * elsewhere: open addressing on the cell key + 1 (0 marks an empty slot).
+ * Used for the long and the short triangles (greedy_store.c keeps it). */
+typedef struct gp_cells {
+    uint64_t *keys;
+    uint32_t *head;
+    size_t slots, used;
+} gp_cells;
+
 typedef struct gp {
     /* input and parameters */
     const tessel_cloud *cloud;
@@ -147,18 +156,14 @@ typedef struct gp {
     /* long triangles: hashed grid of cell edge 1 / lg_inv, every triangle
      * listed in the cells its box overlaps */
     double lg_inv;
-    uint64_t *lg_keys;    /* cell key + 1, 0 = empty slot */
-    uint32_t *lg_head;    /* first entry of the cell */
-    size_t lg_slots, lg_used;
+    gp_cells lg;          /* heads: entries of lt_tri / lt_next */
     uint32_t *lt_tri, *lt_next; /* entries */
     size_t lt_cap, lt_used;
     uint32_t lt_free;
     /* short triangles: hashed grid of cell edge 1 / sg_inv, each triangle
      * listed once, in the cell of its centroid (the guard's index) */
     double sg_inv;
-    uint64_t *sg_keys;    /* cell key + 1, 0 = empty slot */
-    uint32_t *sg_head;
-    size_t sg_slots, sg_used;
+    gp_cells sg;          /* heads: triangles, linked by tsg_next */
     uint32_t *tsg_next;   /* per triangle: next in its cell */
     float *tbox;          /* per triangle: float box, lo[3] then hi[3] (read
                              by the guard's collection without touching the
@@ -320,9 +325,11 @@ static inline size_t hg_find(const uint64_t *keys, size_t slots, uint64_t key)
     return h;
 }
 
-static inline size_t lg_find(const gp *g, uint64_t key)
+/* Slot of the cell with this key: its own, or the empty one it would take
+ * (the table must have slots). */
+static inline size_t cells_find(const gp_cells *c, uint64_t key)
 {
-    return hg_find(g->lg_keys, g->lg_slots, key);
+    return hg_find(c->keys, c->slots, key);
 }
 
 static inline uint32_t sg_coord(const gp *g, double x, int k)

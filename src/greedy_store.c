@@ -363,6 +363,65 @@ static size_t fan_size(const gp *g, uint32_t x)
     return c;
 }
 
+/* ---- hashed cell tables (gp_cells) ---- */
+
+/* Rebuilds the table with room for four times its non-empty cells (at
+ * least 1024 slots), dropping the cells whose list is empty: the front
+ * leaves empty cells behind, so the table follows the held band instead of
+ * growing with every cell ever used. With no cell emptied it doubles. */
+static tessel_status cells_rebuild(gp_cells *c)
+{
+    size_t live = 0;
+    for (size_t i = 0; i < c->slots; i++)
+        live += c->keys[i] && c->head[i] != NONE;
+    size_t slots = 1024;
+    while (slots < 4 * (live + 1))
+        slots *= 2;
+    gp_cells n = {tsl_calloc_array(slots, sizeof *n.keys),
+                  tsl_alloc_array(slots, sizeof *n.head), slots, 0};
+    if (!n.keys || !n.head) {
+        free(n.keys);
+        free(n.head);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t i = 0; i < c->slots; i++) {
+        if (!c->keys[i] || c->head[i] == NONE)
+            continue;
+        size_t h = cells_find(&n, c->keys[i] - 1);
+        n.keys[h] = c->keys[i];
+        n.head[h] = c->head[i];
+        n.used++;
+    }
+    free(c->keys);
+    free(c->head);
+    *c = n;
+    return TESSEL_OK;
+}
+
+/* The slot of key's cell, which is added with an empty list when missing
+ * (the table grows first when half full). */
+static tessel_status cells_slot(gp_cells *c, uint64_t key, size_t *slot)
+{
+    tessel_status s;
+    if (2 * (c->used + 1) > c->slots && (s = cells_rebuild(c)) != TESSEL_OK)
+        return s;
+    size_t h = cells_find(c, key);
+    if (!c->keys[h]) {
+        c->keys[h] = key + 1;
+        c->head[h] = NONE;
+        c->used++;
+    }
+    *slot = h;
+    return TESSEL_OK;
+}
+
+static void cells_free(gp_cells *c)
+{
+    free(c->keys);
+    free(c->head);
+    memset(c, 0, sizeof *c);
+}
+
 /* ---- long triangles: those with an edge longer than ell can meet a new
  * triangle without having a vertex in the box the guard looks at, so they
  * are also listed in a hashed grid ---- */
@@ -377,37 +436,6 @@ void tsl_gp_lg_cells(const gp *g, const float lo[3], const float hi[3], uint32_t
     }
 }
 
-/* Doubles the table (or creates it), dropping cells whose list is empty. */
-static tessel_status lg_rehash(gp *g)
-{
-    size_t slots = g->lg_slots ? 2 * g->lg_slots : 1024;
-    uint64_t *ok = g->lg_keys;
-    uint32_t *oh = g->lg_head;
-    size_t os = g->lg_slots;
-    g->lg_keys = tsl_calloc_array(slots, sizeof *g->lg_keys);
-    g->lg_head = tsl_alloc_array(slots, sizeof *g->lg_head);
-    if (!g->lg_keys || !g->lg_head) {
-        free(g->lg_keys);
-        free(g->lg_head);
-        g->lg_keys = ok;
-        g->lg_head = oh;
-        return TESSEL_ERR_NOMEM;
-    }
-    g->lg_slots = slots;
-    g->lg_used = 0;
-    for (size_t i = 0; i < os; i++) {
-        if (!ok[i] || oh[i] == NONE)
-            continue;
-        size_t h = lg_find(g, ok[i] - 1);
-        g->lg_keys[h] = ok[i];
-        g->lg_head[h] = oh[i];
-        g->lg_used++;
-    }
-    free(ok);
-    free(oh);
-    return TESSEL_OK;
-}
-
 static tessel_status long_register(gp *g, uint32_t t)
 {
     float lo[3], hi[3];
@@ -417,16 +445,10 @@ static tessel_status long_register(gp *g, uint32_t t)
     for (uint32_t z = c0[2]; z <= c1[2]; z++)
         for (uint32_t y = c0[1]; y <= c1[1]; y++)
             for (uint32_t x = c0[0]; x <= c1[0]; x++) {
-                tessel_status s;
-                if (2 * (g->lg_used + 1) > g->lg_slots && (s = lg_rehash(g)) != TESSEL_OK)
+                size_t h;
+                tessel_status s = cells_slot(&g->lg, lg_key(x, y, z), &h);
+                if (s != TESSEL_OK)
                     return s;
-                uint64_t key = lg_key(x, y, z);
-                size_t h = lg_find(g, key);
-                if (!g->lg_keys[h]) {
-                    g->lg_keys[h] = key + 1;
-                    g->lg_head[h] = NONE;
-                    g->lg_used++;
-                }
                 uint32_t e = g->lt_free;
                 if (e != NONE) {
                     g->lt_free = g->lt_next[e];
@@ -446,8 +468,8 @@ static tessel_status long_register(gp *g, uint32_t t)
                     e = (uint32_t)g->lt_used++;
                 }
                 g->lt_tri[e] = t;
-                g->lt_next[e] = g->lg_head[h];
-                g->lg_head[h] = e;
+                g->lt_next[e] = g->lg.head[h];
+                g->lg.head[h] = e;
             }
     return TESSEL_OK;
 }
@@ -461,10 +483,10 @@ static void long_unregister(gp *g, uint32_t t)
     for (uint32_t z = c0[2]; z <= c1[2]; z++)
         for (uint32_t y = c0[1]; y <= c1[1]; y++)
             for (uint32_t x = c0[0]; x <= c1[0]; x++) {
-                size_t h = lg_find(g, lg_key(x, y, z));
-                if (!g->lg_keys[h])
+                size_t h = cells_find(&g->lg, lg_key(x, y, z));
+                if (!g->lg.keys[h])
                     continue;
-                uint32_t *link = &g->lg_head[h];
+                uint32_t *link = &g->lg.head[h];
                 while (*link != NONE && g->lt_tri[*link] != t)
                     link = &g->lt_next[*link];
                 if (*link != NONE) {
@@ -474,44 +496,6 @@ static void long_unregister(gp *g, uint32_t t)
                     g->lt_free = e;
                 }
             }
-}
-
-/* Rebuilds the short-triangle table with room for four times its
- * non-empty cells (the front leaves empty cells behind: the table follows
- * the held band instead of growing with every cell ever used). */
-static tessel_status sg_rehash(gp *g)
-{
-    size_t live = 0;
-    for (size_t i = 0; i < g->sg_slots; i++)
-        live += g->sg_keys[i] && g->sg_head[i] != NONE;
-    size_t slots = 1024;
-    while (slots < 4 * (live + 1))
-        slots *= 2;
-    uint64_t *ok = g->sg_keys;
-    uint32_t *oh = g->sg_head;
-    size_t os = g->sg_slots;
-    g->sg_keys = tsl_calloc_array(slots, sizeof *g->sg_keys);
-    g->sg_head = tsl_alloc_array(slots, sizeof *g->sg_head);
-    if (!g->sg_keys || !g->sg_head) {
-        free(g->sg_keys);
-        free(g->sg_head);
-        g->sg_keys = ok;
-        g->sg_head = oh;
-        return TESSEL_ERR_NOMEM;
-    }
-    g->sg_slots = slots;
-    g->sg_used = 0;
-    for (size_t i = 0; i < os; i++) {
-        if (!ok[i] || oh[i] == NONE)
-            continue;
-        size_t h = hg_find(g->sg_keys, g->sg_slots, ok[i] - 1);
-        g->sg_keys[h] = ok[i];
-        g->sg_head[h] = oh[i];
-        g->sg_used++;
-    }
-    free(ok);
-    free(oh);
-    return TESSEL_OK;
 }
 
 /* Key of the cell of short triangle t's centroid. */
@@ -531,25 +515,19 @@ static uint64_t short_key(const gp *g, uint32_t t)
 /* Lists short triangle t in the cell of its centroid. */
 static tessel_status short_register(gp *g, uint32_t t)
 {
-    tessel_status s;
-    if (2 * (g->sg_used + 1) > g->sg_slots && (s = sg_rehash(g)) != TESSEL_OK)
+    size_t h;
+    tessel_status s = cells_slot(&g->sg, short_key(g, t), &h);
+    if (s != TESSEL_OK)
         return s;
-    uint64_t key = short_key(g, t);
-    size_t h = hg_find(g->sg_keys, g->sg_slots, key);
-    if (!g->sg_keys[h]) {
-        g->sg_keys[h] = key + 1;
-        g->sg_head[h] = NONE;
-        g->sg_used++;
-    }
-    g->tsg_next[t] = g->sg_head[h];
-    g->sg_head[h] = t;
+    g->tsg_next[t] = g->sg.head[h];
+    g->sg.head[h] = t;
     return TESSEL_OK;
 }
 
 static void short_unregister(gp *g, uint32_t t)
 {
-    size_t h = hg_find(g->sg_keys, g->sg_slots, short_key(g, t));
-    uint32_t *link = &g->sg_head[h];
+    size_t h = cells_find(&g->sg, short_key(g, t));
+    uint32_t *link = &g->sg.head[h];
     while (*link != t)
         link = &g->tsg_next[*link];
     *link = g->tsg_next[t];
@@ -871,16 +849,14 @@ void tsl_gp_free(gp *g)
     free(g->blive);
     free(g->bdead);
     free(g->bmaxl);
-    free(g->lg_keys);
-    free(g->lg_head);
+    cells_free(&g->lg);
     free(g->tri);
     free(g->tflag);
     free(g->tblock);
     free(g->tstamp);
     free(g->lt_tri);
     free(g->lt_next);
-    free(g->sg_keys);
-    free(g->sg_head);
+    cells_free(&g->sg);
     free(g->tsg_next);
     free(g->tbox);
     free(g->queue);
