@@ -56,6 +56,23 @@ int cli_exit_for_read(tessel_status status)
     return CLI_INPUT_ERROR;
 }
 
+int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what)
+{
+    tessel_diag diag = {0};
+    tessel_status st = tessel_cloud_read(cloud, path, NULL, &diag);
+    if (st != TESSEL_OK) {
+        cli_error_status(st, &diag, path);
+        return cli_exit_for_read(st);
+    }
+    if (cloud->count < min_points) {
+        cli_error("%s: %zu points: %s needs at least %zu", path, cloud->count, what,
+                  min_points);
+        tessel_cloud_free(cloud);
+        return CLI_INPUT_ERROR;
+    }
+    return CLI_OK;
+}
+
 int cli_exit_for_write(tessel_status status)
 {
     if (status == TESSEL_ERR_NOMEM || status == TESSEL_ERR_CANCELLED ||

@@ -40,6 +40,10 @@ void cli_error_status(tessel_status status, const tessel_diag *diag, const char 
 /* Exit code for a failed read / write / computation status. */
 int cli_exit_for_read(tessel_status status);
 int cli_exit_for_write(tessel_status status);
+/* Reads the cloud at path, printing any error. With fewer than min_points
+ * points it says "PATH: N points: WHAT needs at least MIN" and frees the
+ * cloud. Returns CLI_OK or the exit code. */
+int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what);
 
 /* If argv[*i] is a common option (--threads N, --quiet, --json), consumes
  * it (and its value) and returns 1; 0 when it is not one; -1 on a bad

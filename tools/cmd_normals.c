@@ -49,18 +49,15 @@ int cmd_normals(int argc, char **argv)
     o.np.threads = common.threads;
 
     double t0 = cli_now();
-    tessel_diag diag = {0};
     tessel_cloud cloud = {0};
-    tessel_status st = tessel_cloud_read(&cloud, in, NULL, &diag);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, in);
-        return cli_exit_for_read(st);
-    }
+    int rc = cli_read_cloud(in, &cloud, 0, NULL);
+    if (rc != CLI_OK)
+        return rc;
     cli_progress progress;
     cli_progress_init(&progress, &common);
     tessel_callbacks cb = cli_callbacks(&progress);
     cli_progress_items(&progress, cloud.count);
-    st = tessel_normals_estimate(&cloud, &o.np, &cb);
+    tessel_status st = tessel_normals_estimate(&cloud, &o.np, &cb);
     cli_progress_done(&progress);
     if (st != TESSEL_OK) {
         cli_error("%s: normals failed: %s", in, tessel_status_str(st));
@@ -68,6 +65,7 @@ int cmd_normals(int argc, char **argv)
         return CLI_FAILURE;
     }
     tessel_write_params wp = tessel_write_params_default();
+    tessel_diag diag = {0};
     st = tessel_cloud_write(&cloud, out, &wp, &diag);
     size_t n = cloud.count;
     tessel_cloud_free(&cloud);

@@ -123,18 +123,10 @@ static int greedy(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    tessel_diag diag = {0};
-    tessel_status st = tessel_cloud_read(&cloud, in, NULL, &diag);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, in);
-        return cli_exit_for_read(st);
-    }
+    int rc = cli_read_cloud(in, &cloud, 3, "a surface");
+    if (rc != CLI_OK)
+        return rc;
     double t_read = cli_now() - t0;
-    if (cloud.count < 3) {
-        cli_error("%s: %zu points: a surface needs at least 3", in, cloud.count);
-        tessel_cloud_free(&cloud);
-        return CLI_INPUT_ERROR;
-    }
     greedy_run run = {&o.p, {0}};
     double t_write = 0;
     int code = cli_stream_reconstruction(in, out, &cloud, o.ascii, &common, "reconstruction",

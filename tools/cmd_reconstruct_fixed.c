@@ -230,12 +230,9 @@ int cmd_reconstruct_fixed(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    tessel_diag diag = {0};
-    tessel_status st = tessel_cloud_read(&cloud, in, NULL, &diag);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, in);
-        return cli_exit_for_read(st);
-    }
+    int rc = cli_read_cloud(in, &cloud, 0, NULL);
+    if (rc != CLI_OK)
+        return rc;
     double t_read = cli_now() - t0;
     /* Wrong input for the mode: say so before any work (never an empty
      * mesh without a word). */

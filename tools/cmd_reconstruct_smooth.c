@@ -224,18 +224,10 @@ int cmd_reconstruct_smooth(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    tessel_diag diag = {0};
-    tessel_status st = tessel_cloud_read(&cloud, in, NULL, &diag);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, in);
-        return cli_exit_for_read(st);
-    }
+    int rc = cli_read_cloud(in, &cloud, 3, "the smooth method");
+    if (rc != CLI_OK)
+        return rc;
     double t_read = cli_now() - t0;
-    if (cloud.count < 3) {
-        cli_error("%s: %zu points: the smooth method needs at least 3", in, cloud.count);
-        tessel_cloud_free(&cloud);
-        return CLI_INPUT_ERROR;
-    }
 
     cli_progress prog;
     cli_progress_init(&prog, &common);
@@ -243,7 +235,7 @@ int cmd_reconstruct_smooth(int argc, char **argv)
     cli_progress_items(&prog, cloud.count);
     tessel_mesh mesh;
     tessel_smooth_recon_stats s;
-    st = tessel_reconstruct_smooth(&cloud, &o.p, &cb, &mesh, &s);
+    tessel_status st = tessel_reconstruct_smooth(&cloud, &o.p, &cb, &mesh, &s);
     cli_progress_done(&prog);
     size_t n = cloud.count;
     tessel_cloud_free(&cloud);
@@ -258,6 +250,7 @@ int cmd_reconstruct_smooth(int argc, char **argv)
     double t1 = cli_now();
     tessel_write_params wp = tessel_write_params_default();
     wp.ascii = o.ascii;
+    tessel_diag diag = {0};
     st = tessel_mesh_write(&mesh, out, &wp, &diag);
     double t_write = cli_now() - t1;
     tessel_mesh_free(&mesh);

@@ -148,23 +148,6 @@ static int smooth_option(void *ctx, int argc, char **argv, int *i)
     return 0;
 }
 
-/* Reads IN; prints the error and returns an exit code (0 on success). */
-static int read_input(const char *in, tessel_cloud *cloud)
-{
-    tessel_diag diag = {0};
-    tessel_status st = tessel_cloud_read(cloud, in, NULL, &diag);
-    if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, in);
-        return cli_exit_for_read(st);
-    }
-    if (cloud->count < 3) {
-        cli_error("%s: %zu points; smoothing needs at least 3", in, cloud->count);
-        tessel_cloud_free(cloud);
-        return CLI_INPUT_ERROR;
-    }
-    return CLI_OK;
-}
-
 static int write_output(const char *out, const tessel_cloud *cloud, int ascii)
 {
     tessel_write_params wp = tessel_write_params_default();
@@ -207,7 +190,7 @@ int cmd_smooth(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0}, smooth = {0};
-    int rc = read_input(in, &cloud);
+    int rc = cli_read_cloud(in, &cloud, 3, "smoothing");
     if (rc != CLI_OK)
         return rc;
     cli_progress prog;
@@ -275,7 +258,7 @@ int cmd_simplify(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0}, smooth = {0}, reps = {0};
-    int rc = read_input(in, &cloud);
+    int rc = cli_read_cloud(in, &cloud, 3, "simplification");
     if (rc != CLI_OK)
         return rc;
     cli_progress prog;
