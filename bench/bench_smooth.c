@@ -19,6 +19,7 @@
 #include "tessel.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -378,6 +379,18 @@ static void bench_speed(size_t n)
                    "| %.0f | %.3f | %.0f | spacing estimate included |\n",
                    p.k, p.passes, th, w, cpu, n / w, 1e6 * cpu / n, 2.0 * n / cpu);
             p.spacing = h;
+            p.aggregate = 1;
+            for (uint32_t passes = 2; passes <= 3; passes++) {
+                p.passes = passes;
+                if (time_smooth(&c, &p, &w, &cpu, &st) != 0)
+                    return;
+                printf("| smooth, quadric + aggregate (k=%u, %u passes) | %d | %.3f | %.3f | "
+                       "%.0f | %.3f | %.0f | |\n",
+                       p.k, p.passes, th, w, cpu, n / w, 1e6 * cpu / n, 2.0 * n / cpu);
+            }
+            p = tessel_smooth_params_default();
+            p.spacing = h;
+            p.threads = th;
         }
         if (time_smooth(&c, &p, &w, &cpu, &st) != 0)
             return;
@@ -416,9 +429,16 @@ static void bench_speed(size_t n)
 
 /* ---- 2. real data ---- */
 
+/* Variants of the aggregation table: quadric, aggregate, passes, sigma_w. */
+static const double agg_variants[][4] = {
+    {1, 0, 2, 3}, {1, 1, 2, 3}, {1, 1, 3, 3}, {0, 0, 2, 3}, {0, 1, 2, 3}, {0, 1, 2, 2.5}};
+#define N_AGG (sizeof agg_variants / sizeof *agg_variants)
+
 static void bench_data(const char *dir, uint32_t passes)
 {
     static const char *names[] = {"bunny", "elephant", "knot2"};
+    double agg_gain[3][N_AGG], agg_time[3][N_AGG];
+    bool have[3] = {false, false, false};
     printf("## Accuracy: DIR/NAME.pd.n05.ply against NAME.gt.ply\n\n");
     printf("RMS / max: distance to the true surface in %% of its bounding-box diagonal; "
            "median gain: ratio of the median distances. Times are wall seconds.\n\n");
@@ -530,11 +550,46 @@ static void bench_data(const char *dir, uint32_t passes)
                    "gain | median gain | time | reps | reps RMS / max | time |\n");
             printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
         }
+        for (size_t v = 0; v < N_AGG; v++) {
+            tessel_cloud s2;
+            tessel_smooth_params q = tessel_smooth_params_default();
+            q.quadric = (int)agg_variants[v][0];
+            q.aggregate = (int)agg_variants[v][1];
+            q.passes = (uint32_t)agg_variants[v][2];
+            q.sigma_w = agg_variants[v][3];
+            t0 = now();
+            if (tessel_smooth(&c, &s2, &q, NULL, NULL) != TESSEL_OK)
+                return;
+            agg_time[f][v] = now() - t0;
+            double rr, mm;
+            cloud_distance(&g, &s2, &rr, &mm);
+            agg_gain[f][v] = r0 / rr;
+            tessel_cloud_free(&s2);
+        }
+        have[f] = true;
         tri_grid_free(&g);
         tessel_cloud_free(&r);
         tessel_cloud_free(&s);
         tessel_cloud_free(&c);
         tessel_mesh_free(&gt);
+    }
+    printf("\nAggregation (params.aggregate): RMS gain (wall seconds)\n\n");
+    printf("| operator | aggregate | passes | sigma_w |");
+    for (size_t f = 0; f < 3; f++)
+        if (have[f])
+            printf(" %s |", names[f]);
+    printf("\n|---|---|---|---|");
+    for (size_t f = 0; f < 3; f++)
+        if (have[f])
+            printf("---|");
+    printf("\n");
+    for (size_t v = 0; v < N_AGG; v++) {
+        printf("| %s | %s | %.0f | %.1f |", agg_variants[v][0] ? "quadric" : "plane",
+               agg_variants[v][1] ? "yes" : "no", agg_variants[v][2], agg_variants[v][3]);
+        for (size_t f = 0; f < 3; f++)
+            if (have[f])
+                printf(" %.2fx (%.3f) |", agg_gain[f][v], agg_time[f][v]);
+        printf("\n");
     }
     printf("\n");
 }

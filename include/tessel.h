@@ -863,6 +863,17 @@ typedef struct tessel_smooth_params {
                                  rejects more; default 1 (> 0). Those
                                  passes reuse the first pass's neighbours
                                  (at their new positions) */
+    int aggregate;            /* 1: beyond the paper, after each pass a
+                                 point moves to the weighted mean of its
+                                 projections onto the surfaces fitted at
+                                 its neighbours (within ~1.5 h) and at
+                                 itself, and its normal to their mean
+                                 normal: less of each point's own noise
+                                 stays where the surface curves within a
+                                 few h (thin parts; docs/smooth.md,
+                                 section E), for about half again the
+                                 time and 64 bytes per point. 0 (default):
+                                 off; other values are invalid */
 } tessel_smooth_params;
 TESSEL_API tessel_smooth_params tessel_smooth_params_default(void);
 

@@ -190,6 +190,62 @@ static void test_normals(void)
     unlink(out);
 }
 
+/* RMS of |p| - 1 over a cloud read from path (-1 when unreadable). */
+static double sphere_rms_of(const char *path)
+{
+    tessel_cloud r;
+    if (tessel_cloud_read(&r, path, NULL, NULL) != TESSEL_OK)
+        return -1.0;
+    double s = 0;
+    for (size_t i = 0; i < r.count; i++) {
+        const float *p = r.xyz + 3 * i;
+        double d = sqrt((double)p[0] * p[0] + (double)p[1] * p[1] + (double)p[2] * p[2]) - 1.0;
+        s += d * d;
+    }
+    s = sqrt(s / (double)r.count);
+    tessel_cloud_free(&r);
+    return s;
+}
+
+/* tessel smooth on a noisy sphere (radial noise of about the spacing):
+ * the output is closer to the sphere, --aggregate closer still, and the
+ * summary reports the options. */
+static void test_smooth(void)
+{
+    tessel_cloud c;
+    const size_t n = 2000;
+    CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+    const double golden = 2.399963229728653;
+    uint64_t state = 7;
+    for (size_t i = 0; i < n; i++) {
+        double z = 1.0 - 2.0 * ((double)i + 0.5) / (double)n, r = sqrt(1 - z * z);
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        double u = (double)(state >> 11) * 0x1.0p-53; /* [0, 1): noise +-0.08 */
+        double s = 1.0 + 0.16 * (u - 0.5);
+        c.xyz[3 * i] = (float)(s * r * cos(golden * (double)i));
+        c.xyz[3 * i + 1] = (float)(s * r * sin(golden * (double)i));
+        c.xyz[3 * i + 2] = (float)(s * z);
+    }
+    char in[512], out[512], args[2048];
+    snprintf(in, sizeof in, "%s/noisy_sphere.ply", tmpdir);
+    snprintf(out, sizeof out, "%s/noisy_sphere_s.ply", tmpdir);
+    CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
+    double before = sphere_rms_of(in);
+    snprintf(args, sizeof args, "smooth %s %s --json", in, out);
+    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"aggregate\": 0"));
+    double plain = sphere_rms_of(out);
+    snprintf(args, sizeof args, "smooth %s %s --aggregate --json", in, out);
+    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"aggregate\": 1"));
+    double agg = sphere_rms_of(out);
+    CHECK_MSG(plain > 0 && plain < before / 2 && agg > 0 && agg < plain,
+              "rms %g -> %g, aggregated %g", before, plain, agg);
+    snprintf(args, sizeof args, "smooth %s %s --passes 0", in, out);
+    CHECK(run(args) == 1);
+    tessel_cloud_free(&c);
+    unlink(in);
+    unlink(out);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/tessel_test_cli_XXXXXX");
@@ -201,6 +257,7 @@ int main(void)
     test_bad_files();
     test_convert_round_trip();
     test_normals();
+    test_smooth();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
     if (system(cmd) != 0)
