@@ -1,8 +1,9 @@
-/* Data shared by the neighbour benchmarks (bench_kdtree.c and the optional
- * bench_nanoflann.cpp): a fixed-seed sampler of a torus surface, a
- * deterministic query radius, a minimal reader for binary little-endian
- * PLY vertices (float or double x y z first) and a clock. Valid C11 and
- * C++11 so both programs measure exactly the same points. */
+/* What the benchmarks share: a fixed-seed random generator, a sampler of a
+ * torus surface and a deterministic query radius (the neighbour benchmarks,
+ * bench_kdtree.c and the optional bench_nanoflann.cpp), a minimal reader
+ * for binary little-endian PLY vertices (float or double x y z first),
+ * wall and CPU clocks and the peak resident memory. Valid C11 and C++11 so
+ * the C and C++ programs measure exactly the same points. */
 #ifndef TESSEL_BENCH_DATA_H
 #define TESSEL_BENCH_DATA_H
 
@@ -11,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
 
 /* splitmix64: tiny, fixed-seed, identical in C and C++. */
@@ -24,6 +26,12 @@ static inline uint64_t bench_rng(uint64_t *s)
 static inline double bench_unif(uint64_t *s)
 {
     return (double)(bench_rng(s) >> 11) * (1.0 / 9007199254740992.0);
+}
+/* Standard normal (Box-Muller, one of the pair). */
+static inline double bench_gauss(uint64_t *s)
+{
+    double u = bench_unif(s), v = bench_unif(s);
+    return sqrt(-2.0 * log(u + 1e-300)) * cos(6.283185307179586 * v);
 }
 
 #define BENCH_TORUS_R 1.0
@@ -168,6 +176,14 @@ static inline double bench_cpu_now(void)
     struct timespec ts;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Peak resident memory of the process so far, bytes (Linux reports KiB). */
+static inline size_t bench_peak_rss_bytes(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_SELF, &ru);
+    return (size_t)ru.ru_maxrss * 1024u;
 }
 
 /* One-thread figures in CPU time, threaded ones in wall time. */

@@ -19,32 +19,15 @@
  * does about 9 M points/s here: bench_fixed_plane_pcl (built when PCL is
  * found) runs both on the same organized inputs and prints the ratio. */
 #include "tessel.h"
+#include "bench_data.h"
 #include "bench_fixed_plane_scene.h"
 
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 #include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-/* CPU time of the process: on a shared machine the wall clock also counts
- * the time other jobs held the core; "cpu" points/s divide by this. */
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 typedef struct counter {
     size_t triangles;
@@ -66,13 +49,6 @@ static const char *mode_name(tessel_fixed_plane_mode m)
                                                                                      : "grid";
 }
 
-static size_t peak_rss_bytes(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return (size_t)ru.ru_maxrss * 1024u;
-}
-
 /* Runs one reconstruction (repeats small ones to time them) and prints one
  * line. input_bytes: what the cloud itself holds. */
 static int measure(const tessel_cloud *cloud, tessel_fixed_plane_mode mode, int threads,
@@ -90,9 +66,9 @@ static int measure(const tessel_cloud *cloud, tessel_fixed_plane_mode mode, int 
     double best = INFINITY, best_cpu = INFINITY, best_dexels = 0;
     for (int k = 0; k < reps; k++) {
         c.triangles = 0;
-        double t0 = now(), c0 = cpu_now();
+        double t0 = bench_now(), c0 = bench_cpu_now();
         tessel_status s = tessel_reconstruct_fixed_plane(cloud, &p, NULL, &sink, &st);
-        double t = now() - t0, ct = cpu_now() - c0;
+        double t = bench_now() - t0, ct = bench_cpu_now() - c0;
         if (s != TESSEL_OK) {
             fprintf(stderr, "bench_fixed_plane: %s: %s\n", what, tessel_status_str(s));
             return 1;
@@ -103,7 +79,7 @@ static int measure(const tessel_cloud *cloud, tessel_fixed_plane_mode mode, int 
         }
         best_cpu = ct < best_cpu ? ct : best_cpu;
     }
-    size_t rss = peak_rss_bytes();
+    size_t rss = bench_peak_rss_bytes();
     double extra = rss > input_bytes ? (double)(rss - input_bytes) / (double)cloud->count : 0.0;
     printf("%-6s %-24s %11zu pts %10zu reps %10zu tris %8.3f s %7.2f M pts/s "
            "(cpu %7.2f)  dexels %.3f s  %5.1f B/pt  (input made in %.1f s)\n",
@@ -118,7 +94,7 @@ static int run_synthetic(tessel_fixed_plane_mode mode, size_t n, int threads)
 {
     tessel_cloud cloud;
     memset(&cloud, 0, sizeof cloud);
-    double t0 = now();
+    double t0 = bench_now();
     char what[64];
     size_t count;
     if (mode == TESSEL_FIXED_PLANE_HEIGHT) {
@@ -148,7 +124,7 @@ static int run_synthetic(tessel_fixed_plane_mode mode, size_t n, int threads)
         }
         snprintf(what, sizeof what, "room scan %ux%u", cols, rows);
     }
-    double gen = now() - t0;
+    double gen = bench_now() - t0;
     size_t input = count * 12 + (cloud.grid ? count * 4 : 0);
     int rc = measure(&cloud, mode, threads, what, gen, input);
     tessel_cloud_free(&cloud);
@@ -160,7 +136,7 @@ static int run_file(const char *path, tessel_fixed_plane_mode mode, int threads)
     tessel_cloud cloud;
     tessel_diag diag;
     memset(&diag, 0, sizeof diag);
-    double t0 = now();
+    double t0 = bench_now();
     tessel_status s = tessel_cloud_read(&cloud, path, NULL, &diag);
     if (s != TESSEL_OK) {
         fprintf(stderr, "bench_fixed_plane: %s: %s\n", path, diag.message);
@@ -168,7 +144,7 @@ static int run_file(const char *path, tessel_fixed_plane_mode mode, int threads)
     }
     const char *base = strrchr(path, '/');
     size_t input = cloud.count * 12 + (cloud.grid ? (size_t)cloud.width * cloud.height * 4 : 0);
-    int rc = measure(&cloud, mode, threads, base ? base + 1 : path, now() - t0, input);
+    int rc = measure(&cloud, mode, threads, base ? base + 1 : path, bench_now() - t0, input);
     tessel_cloud_free(&cloud);
     return rc;
 }

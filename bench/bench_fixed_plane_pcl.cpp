@@ -12,36 +12,20 @@
 // with the scan's viewpoint for its shadow test, the closest to tessel's
 // shorter diagonal and depth-jump test.
 #include "tessel.h"
+#include "bench_data.h"
 #include "bench_fixed_plane_scene.h"
 
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 #include <pcl/surface/organized_fast_mesh.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <string>
-#include <time.h>
 #include <vector>
-
-static double now()
-{
-    using namespace std::chrono;
-    return duration<double>(steady_clock::now().time_since_epoch()).count();
-}
-
-// CPU time of the process: on a shared machine the wall clock also counts
-// the time other jobs held the core.
-static double cpu_now()
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 struct Timing {
     double wall, cpu;
@@ -73,9 +57,9 @@ template <class F> static Timing best_time(size_t n, F f)
     Timing best = {std::numeric_limits<double>::infinity(),
                    std::numeric_limits<double>::infinity()};
     for (int k = 0; k < reps; k++) {
-        double t0 = now(), c0 = cpu_now();
+        double t0 = bench_now(), c0 = bench_cpu_now();
         f();
-        double t = now() - t0, c = cpu_now() - c0;
+        double t = bench_now() - t0, c = bench_cpu_now() - c0;
         best.wall = t < best.wall ? t : best.wall;
         best.cpu = c < best.cpu ? c : best.cpu;
     }

@@ -21,37 +21,15 @@
  * (built with -DTESSEL_BENCH_PEERS=ON when PCL is installed); figures in
  * docs/greedy.md. */
 #include "tessel.h"
+#include "bench_data.h"
 #include "../tests/surfaces.h"
 
 #include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 #include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static size_t peak_rss_bytes(void)
-{
-    struct rusage ru;
-    getrusage(RUSAGE_SELF, &ru);
-    return (size_t)ru.ru_maxrss * 1024u;
-}
 
 typedef struct counter {
     size_t triangles;
@@ -93,24 +71,24 @@ static int measure(const tessel_cloud *cloud, const options *o, const char *what
         sink = tessel_mesh_writer_sink(w);
     }
     tessel_recon_summary sum;
-    double t0 = now(), c0 = cpu_now();
+    double t0 = bench_now(), c0 = bench_cpu_now();
     tessel_status s = tessel_reconstruct_greedy(cloud, &p, NULL, &sink, &sum);
-    double t = now() - t0, ct = cpu_now() - c0;
+    double t = bench_now() - t0, ct = bench_cpu_now() - c0;
     double tw = 0.0;
     if (w) {
-        double t1 = now();
+        double t1 = bench_now();
         if (s == TESSEL_OK)
             s = tessel_mesh_writer_close(w, NULL);
         else
             tessel_mesh_writer_abort(w);
-        tw = now() - t1;
+        tw = bench_now() - t1;
         remove(path);
     }
     if (s != TESSEL_OK) {
         fprintf(stderr, "bench_greedy: %s: %s\n", what, tessel_status_str(s));
         return 1;
     }
-    size_t rss = peak_rss_bytes();
+    size_t rss = bench_peak_rss_bytes();
     double n = (double)cloud->count;
     printf("%-22s %9zu pts %9zu tris %6zu bnd %3zu comp %5zu left  %8.3f s %8.0f pts/s "
            "(cpu %8.0f)  held %8zu  %5.1f B/pt (%5.1f beyond input)%s",

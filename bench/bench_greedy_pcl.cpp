@@ -15,6 +15,7 @@
 //
 //   bench_greedy_pcl [--sizes 1e4,1e5] [FILE...]
 #include "tessel.h"
+#include "bench_data.h"
 #include "../tests/surfaces.h"
 
 #include <pcl/common/io.h>
@@ -23,27 +24,10 @@
 #include <pcl/search/kdtree.h>
 #include <pcl/surface/gp3.h>
 
-#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <ctime>
 #include <string>
-
-static double now()
-{
-    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-}
-
-// Process CPU time: on a shared machine the fairer measure (both sides run
-// on one thread).
-static double cpu_now()
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static tessel_status count_sink(void *user, const uint32_t *, size_t n)
 {
@@ -58,9 +42,9 @@ static int compare(const tessel_cloud *cloud, const char *what)
     tessel_triangle_sink sink = {count_sink, &tris};
     tessel_recon_summary sum;
     tessel_greedy_params p = tessel_greedy_params_default();
-    double t0 = now(), c0 = cpu_now();
+    double t0 = bench_now(), c0 = bench_cpu_now();
     tessel_status s = tessel_reconstruct_greedy(cloud, &p, nullptr, &sink, &sum);
-    double t_tessel = now() - t0, c_tessel = cpu_now() - c0;
+    double t_tessel = bench_now() - t0, c_tessel = bench_cpu_now() - c0;
     if (s != TESSEL_OK) {
         std::fprintf(stderr, "bench_greedy_pcl: %s: %s\n", what, tessel_status_str(s));
         return 1;
@@ -70,7 +54,7 @@ static int compare(const tessel_cloud *cloud, const char *what)
     xyz->resize(cloud->count);
     for (size_t i = 0; i < cloud->count; i++)
         (*xyz)[i] = pcl::PointXYZ(cloud->xyz[3 * i], cloud->xyz[3 * i + 1], cloud->xyz[3 * i + 2]);
-    double t1 = now(), c1 = cpu_now();
+    double t1 = bench_now(), c1 = bench_cpu_now();
     pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> ne;
     pcl::PointCloud<pcl::Normal>::Ptr normals(new pcl::PointCloud<pcl::Normal>);
     pcl::search::KdTree<pcl::PointXYZ>::Ptr tree(new pcl::search::KdTree<pcl::PointXYZ>);
@@ -81,7 +65,7 @@ static int compare(const tessel_cloud *cloud, const char *what)
     ne.compute(*normals);
     pcl::PointCloud<pcl::PointNormal>::Ptr pn(new pcl::PointCloud<pcl::PointNormal>);
     pcl::concatenateFields(*xyz, *normals, *pn);
-    double t2 = now();
+    double t2 = bench_now();
     pcl::search::KdTree<pcl::PointNormal>::Ptr tree2(new pcl::search::KdTree<pcl::PointNormal>);
     tree2->setInputCloud(pn);
     pcl::GreedyProjectionTriangulation<pcl::PointNormal> gp3;
@@ -96,7 +80,7 @@ static int compare(const tessel_cloud *cloud, const char *what)
     gp3.setInputCloud(pn);
     gp3.setSearchMethod(tree2);
     gp3.reconstruct(mesh);
-    double t3 = now(), c_pcl = cpu_now() - c1;
+    double t3 = bench_now(), c_pcl = bench_cpu_now() - c1;
     double t_pcl = t3 - t1;
     std::printf("%-20s %9zu pts  tessel %8.3f s %9zu tris  |  PCL %8.3f s (normals %.3f, gp3 "
                 "%.3f) %9zu tris  |  PCL / tessel %6.1fx (gp3 alone %.1fx)  |  CPU: tessel "

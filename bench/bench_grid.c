@@ -14,13 +14,6 @@
 
 #include <stdbool.h>
 
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 typedef struct gpoint {
     float x[3];
     uint32_t id;
@@ -209,14 +202,14 @@ static void compare(const char *name, const float *xyz, size_t n)
     double tb = 1e30, tq[3] = {1e30, 1e30, 1e30};
     for (int run = 0; run < 3; run++) {
         tessel_index *ix = NULL;
-        double t0 = cpu_now();
+        double t0 = bench_cpu_now();
         tessel_index_build(&ix, xyz, n);
-        double t1 = cpu_now();
+        double t1 = bench_cpu_now();
         tb = t1 - t0 < tb ? t1 - t0 : tb;
         for (int ki = 0; ki < 3; ki++) {
-            t0 = cpu_now();
+            t0 = bench_cpu_now();
             tessel_index_knn_batch(ix, xyz, n, ks[ki], ia, da, 1);
-            t1 = cpu_now();
+            t1 = bench_cpu_now();
             tq[ki] = t1 - t0 < tq[ki] ? t1 - t0 : tq[ki];
         }
         tessel_index_destroy(ix);
@@ -230,16 +223,16 @@ static void compare(const char *name, const float *xyz, size_t n)
         size_t mismatches = 0;
         for (int run = 0; run < 3; run++) {
             grid g;
-            double t0 = cpu_now();
+            double t0 = bench_cpu_now();
             grid_build(&g, xyz, n, occ[oi]);
-            double t1 = cpu_now();
+            double t1 = bench_cpu_now();
             gb = t1 - t0 < gb ? t1 - t0 : gb;
             for (int ki = 0; ki < 3; ki++) {
                 size_t k = ks[ki];
-                t0 = cpu_now();
+                t0 = bench_cpu_now();
                 for (size_t i = 0; i < n; i++)
                     grid_knn(&g, n, xyz + 3 * i, k, ib + i * k, db + i * k);
-                t1 = cpu_now();
+                t1 = bench_cpu_now();
                 gq[ki] = t1 - t0 < gq[ki] ? t1 - t0 : gq[ki];
                 if (run == 0) {
                     tessel_index *ix = NULL;

@@ -15,13 +15,6 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static int cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
@@ -47,16 +40,16 @@ static int run(const char *label, const tessel_cloud *cloud, const char *path)
     size_t bytes = 0;
     for (int r = 0; r < 3; r++) {
         tessel_diag d;
-        double t0 = now();
+        double t0 = bench_now();
         tessel_status st = tessel_cloud_write(cloud, path, NULL, &d);
-        double t1 = now();
+        double t1 = bench_now();
         if (st != TESSEL_OK) {
             fprintf(stderr, "write %s: %s\n", path, d.message);
             return 1;
         }
         tessel_cloud back;
         st = tessel_cloud_read(&back, path, NULL, &d);
-        double t2 = now();
+        double t2 = bench_now();
         if (st != TESSEL_OK) {
             fprintf(stderr, "read %s: %s\n", path, d.message);
             return 1;

@@ -14,43 +14,16 @@
  * usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K]
  *                       [--data DIR] [--out DIR] [--skip-sizes] */
 #include "tessel.h"
+#include "bench_data.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-/* CPU seconds of the process (all threads): on a machine shared with other
- * jobs the wall time varies by 2x from run to run, this much less. */
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static uint64_t rng_state;
-static double urand(void)
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
-static double gauss(void)
-{
-    double u = urand(), v = urand();
-    return sqrt(-2.0 * log(u + 1e-300)) * cos(6.283185307179586 * v);
-}
+static double urand(void) { return bench_unif(&rng_state); }
+static double gauss(void) { return bench_gauss(&rng_state); }
 
 /* n points uniformly at random on the torus (radii 1, 0.35) plus Gaussian
  * noise of sigma = 0.5 times the expected mean spacing per axis. */
@@ -105,9 +78,9 @@ static void run_sizes(size_t max, const tessel_smooth_recon_params *p)
         }
         tessel_mesh m;
         tessel_smooth_recon_stats s;
-        double t0 = now(), c0 = cpu_now();
+        double t0 = bench_now(), c0 = bench_cpu_now();
         tessel_status st = tessel_reconstruct_smooth(&c, p, NULL, &m, &s);
-        double secs = now() - t0, cpu = cpu_now() - c0;
+        double secs = bench_now() - t0, cpu = bench_cpu_now() - c0;
         if (st != TESSEL_OK) {
             fprintf(stderr, "bench_pipeline: %zu points: %s\n", n, tessel_status_str(st));
         } else {
@@ -135,9 +108,9 @@ static void run_file(const char *dir, const char *name, const char *suffix, cons
         return;
     }
     tessel_smooth_recon_stats s;
-    double t0 = now(), c0 = cpu_now();
+    double t0 = bench_now(), c0 = bench_cpu_now();
     tessel_status st = tessel_reconstruct_smooth(&c, p, NULL, &m, &s);
-    double secs = now() - t0, cpu = cpu_now() - c0;
+    double secs = bench_now() - t0, cpu = bench_cpu_now() - c0;
     if (st != TESSEL_OK) {
         fprintf(stderr, "bench_pipeline: %s: %s\n", path, tessel_status_str(st));
     } else {

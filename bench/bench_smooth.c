@@ -17,41 +17,17 @@
  *
  * usage: bench_smooth [--n POINTS] [--data DIR] [--passes P] [--skip-speed] */
 #include "tessel.h"
+#include "bench_data.h"
 
 #include <math.h>
 #include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static uint64_t rng_state = 12345;
-static double urand(void)
-{
-    uint64_t z = (rng_state += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
-static double gauss(void)
-{
-    double u = urand(), v = urand();
-    return sqrt(-2.0 * log(u + 1e-300)) * cos(6.283185307179586 * v);
-}
+static double urand(void) { return bench_unif(&rng_state); }
+static double gauss(void) { return bench_gauss(&rng_state); }
 
 /* ---- point to mesh distance ---- */
 
@@ -325,10 +301,10 @@ static int time_smooth(const tessel_cloud *c, const tessel_smooth_params *p, dou
     double w[3], u[3];
     for (int r = 0; r < 3; r++) {
         tessel_cloud out;
-        double t0 = now(), c0 = cpu_now();
+        double t0 = bench_now(), c0 = bench_cpu_now();
         if (tessel_smooth(c, &out, p, NULL, st) != TESSEL_OK)
             return -1;
-        w[r] = now() - t0, u[r] = cpu_now() - c0;
+        w[r] = bench_now() - t0, u[r] = bench_cpu_now() - c0;
         tessel_cloud_free(&out);
     }
     *wall = median3(w[0], w[1], w[2]);
@@ -345,11 +321,11 @@ static void bench_speed(size_t n)
     printf(
         "## Throughput: noisy unit sphere, %zu points (uniform random, radial noise %.5f)\n\n",
         n, noise);
-    double t0 = now(), c0 = cpu_now(), h;
+    double t0 = bench_now(), c0 = bench_cpu_now(), h;
     if (tessel_cloud_spacing(&c, &h) != TESSEL_OK)
         return;
-    printf("spacing estimate: h = %.5f in %.3f s wall, %.3f s CPU\n\n", h, now() - t0,
-           cpu_now() - c0);
+    printf("spacing estimate: h = %.5f in %.3f s wall, %.3f s CPU\n\n", h, bench_now() - t0,
+           bench_cpu_now() - c0);
     printf("Medians of three runs. CPU us/pt: process CPU time per point (all threads, all "
            "passes); points/s on 2 idle cores = 2e6 / that (the figure to read when other "
            "jobs share the machine).\n\n");
@@ -404,15 +380,15 @@ static void bench_speed(size_t n)
         sp.cluster.spacing = sp.projection.spacing = h;
         sp.cluster.threads = sp.projection.threads = th;
         tessel_clusters cl;
-        t0 = now(), c0 = cpu_now();
+        t0 = bench_now(), c0 = bench_cpu_now();
         if (tessel_cluster(&out, &sp.cluster, NULL, &cl) != TESSEL_OK)
             return;
-        double w1 = now() - t0, cpu1 = cpu_now() - c0;
-        t0 = now(), c0 = cpu_now();
+        double w1 = bench_now() - t0, cpu1 = bench_cpu_now() - c0;
+        t0 = bench_now(), c0 = bench_cpu_now();
         tessel_simplify_stats ss;
         if (tessel_representatives(&out, &cl, &sp, NULL, &reps, &ss) != TESSEL_OK)
             return;
-        double w2 = now() - t0, cpu2 = cpu_now() - c0;
+        double w2 = bench_now() - t0, cpu2 = bench_cpu_now() - c0;
         printf("| cluster | %d | %.3f | %.3f | %.0f | %.3f | %.0f | %zu clusters |\n", th, w1,
                cpu1, n / w1, 1e6 * cpu1 / n, 2.0 * n / cpu1, cl.count);
         printf("| representatives | %d | %.3f | %.3f | %.0f | %.3f | %.0f | %zu points (%.1fx "
@@ -479,16 +455,16 @@ static void bench_data(const char *dir, uint32_t passes)
         tessel_cloud_spacing(&c, &h);
         tessel_smooth_params p = tessel_smooth_params_default();
         p.passes = passes;
-        double t0 = now();
+        double t0 = bench_now();
         if (tessel_smooth(&c, &s, &p, NULL, NULL) != TESSEL_OK)
             return;
-        double ts = now() - t0;
+        double ts = bench_now() - t0;
         cloud_distance3(&g, &s, &r1, &m1, &md1);
-        t0 = now();
+        t0 = bench_now();
         tessel_simplify_stats ss;
         if (tessel_simplify(&s, &r, NULL, NULL, &ss) != TESSEL_OK)
             return;
-        double tr = now() - t0;
+        double tr = bench_now() - t0;
         cloud_distance(&g, &r, &r2, &m2);
         printf(
             "| %s | %zu | %.3f | %.3f / %.3f | %.3f / %.3f (%u) | %.2fx | %.2fx | %.3f | %zu | "
@@ -557,10 +533,10 @@ static void bench_data(const char *dir, uint32_t passes)
             q.aggregate = (int)agg_variants[v][1];
             q.passes = (uint32_t)agg_variants[v][2];
             q.sigma_w = agg_variants[v][3];
-            t0 = now();
+            t0 = bench_now();
             if (tessel_smooth(&c, &s2, &q, NULL, NULL) != TESSEL_OK)
                 return;
-            agg_time[f][v] = now() - t0;
+            agg_time[f][v] = bench_now() - t0;
             double rr, mm;
             cloud_distance(&g, &s2, &rr, &mm);
             agg_gain[f][v] = r0 / rr;
