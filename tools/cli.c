@@ -108,6 +108,15 @@ bool cli_parse_int(const char *opt, const char *text, long min, long max, long *
     return true;
 }
 
+const char *cli_option_value(int argc, char **argv, int *i)
+{
+    if (*i + 1 >= argc) {
+        cli_error("%s needs a value", argv[*i]);
+        return NULL;
+    }
+    return argv[++*i];
+}
+
 int cli_common_option(cli_common *common, int argc, char **argv, int *i)
 {
     const char *a = argv[*i];
@@ -120,15 +129,11 @@ int cli_common_option(cli_common *common, int argc, char **argv, int *i)
         return 1;
     }
     if (strcmp(a, "--threads") == 0 || strcmp(a, "-j") == 0) {
-        if (*i + 1 >= argc) {
-            cli_error("%s needs a value", a);
-            return -1;
-        }
+        const char *v = cli_option_value(argc, argv, i);
         long n;
-        if (!cli_parse_int(a, argv[*i + 1], 0, 4096, &n))
+        if (!v || !cli_parse_int(a, v, 0, 4096, &n))
             return -1;
         common->threads = (int)n;
-        (*i)++;
         return 1;
     }
     return 0;

@@ -52,6 +52,9 @@ int cli_common_option(cli_common *common, int argc, char **argv, int *i);
 /* Help text for the common options, for each subcommand's --help. */
 extern const char cli_common_help[];
 
+/* The value of option argv[*i] (advancing *i past it), or NULL after
+ * reporting it missing. */
+const char *cli_option_value(int argc, char **argv, int *i);
 /* Parses a number option value; prints an error and returns false when
  * it is not a finite number / a non-negative integer within range. */
 bool cli_parse_double(const char *opt, const char *text, double *out);

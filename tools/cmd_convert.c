@@ -51,12 +51,8 @@ static int convert_option(void *ctx, int argc, char **argv, int *i)
         return 1;
     }
     if (strcmp(a, "--format") == 0) {
-        if (*i + 1 >= argc) {
-            cli_error("--format needs a value");
-            return -1;
-        }
-        (*i)++;
-        return parse_format(argv[*i], &o->wp.format) ? 1 : -1;
+        const char *v = cli_option_value(argc, argv, i);
+        return v && parse_format(v, &o->wp.format) ? 1 : -1;
     }
     return 0;
 }

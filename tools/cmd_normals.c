@@ -23,15 +23,11 @@ static int normals_option(void *ctx, int argc, char **argv, int *i)
         return 1;
     }
     if (strcmp(a, "-k") == 0 || strcmp(a, "--k") == 0) {
-        if (*i + 1 >= argc) {
-            cli_error("%s needs a value", a);
-            return -1;
-        }
+        const char *v = cli_option_value(argc, argv, i);
         long k;
-        if (!cli_parse_int(a, argv[*i + 1], 3, 256, &k))
+        if (!v || !cli_parse_int(a, v, 3, 256, &k))
             return -1;
         o->np.k = (uint32_t)k;
-        (*i)++;
         return 1;
     }
     return 0;

@@ -53,11 +53,9 @@ static int greedy_option(void *ctx, int argc, char **argv, int *i)
     if (strcmp(a, "--mu") && strcmp(a, "--max-angle") && strcmp(a, "--min-angle") &&
         strcmp(a, "--plane") && strcmp(a, "--max-spacing") && strcmp(a, "--method"))
         return 0;
-    if (*i + 1 >= argc) {
-        cli_error("%s needs a value", a);
+    const char *v = cli_option_value(argc, argv, i);
+    if (!v)
         return -1;
-    }
-    const char *v = argv[++*i];
     if (strcmp(a, "--method") == 0) {
         if (strcmp(v, "greedy") != 0) {
             cli_error("--method must be greedy or smooth, got '%s'", v);

@@ -49,15 +49,6 @@ typedef struct fixed_opts {
     double cell_arg;
 } fixed_opts;
 
-static const char *value_of(int argc, char **argv, int *i)
-{
-    if (*i + 1 >= argc) {
-        cli_error("%s needs a value", argv[*i]);
-        return NULL;
-    }
-    return argv[++*i];
-}
-
 /* "W" "x" "H" with positive whole numbers. */
 static bool parse_grid(const char *text, uint32_t *w, uint32_t *h)
 {
@@ -104,7 +95,7 @@ static int fixed_option(void *ctx, int argc, char **argv, int *i)
     fixed_opts *o = ctx;
     const char *a = argv[*i], *v;
     if (strcmp(a, "--mode") == 0) {
-        if (!(v = value_of(argc, argv, i)))
+        if (!(v = cli_option_value(argc, argv, i)))
             return -1;
         if (strcmp(v, "height") == 0)
             o->p.mode = TESSEL_FIXED_PLANE_HEIGHT;
@@ -120,7 +111,7 @@ static int fixed_option(void *ctx, int argc, char **argv, int *i)
         return 1;
     }
     if (strcmp(a, "--axis") == 0) {
-        if (!(v = value_of(argc, argv, i)))
+        if (!(v = cli_option_value(argc, argv, i)))
             return -1;
         if (strcmp(v, "x") == 0 || strcmp(v, "y") == 0 || strcmp(v, "z") == 0)
             o->p.axis = v[0] - 'x';
@@ -133,12 +124,12 @@ static int fixed_option(void *ctx, int argc, char **argv, int *i)
         return 1;
     }
     if (strcmp(a, "--grid") == 0) {
-        if (!(v = value_of(argc, argv, i)))
+        if (!(v = cli_option_value(argc, argv, i)))
             return -1;
         return parse_grid(v, &o->p.columns, &o->p.rows) ? 1 : -1;
     }
     if (strcmp(a, "--viewpoint") == 0) {
-        if (!(v = value_of(argc, argv, i)))
+        if (!(v = cli_option_value(argc, argv, i)))
             return -1;
         if (!parse_triple(a, v, o->p.viewpoint))
             return -1;
@@ -155,7 +146,7 @@ static int fixed_option(void *ctx, int argc, char **argv, int *i)
         if (strcmp(a, numeric[k]) != 0)
             continue;
         double x;
-        if (!(v = value_of(argc, argv, i)) || !cli_parse_double(a, v, &x))
+        if (!(v = cli_option_value(argc, argv, i)) || !cli_parse_double(a, v, &x))
             return -1;
         bool ok = true;
         switch (k) {

@@ -60,15 +60,6 @@ typedef struct smooth_recon_opts {
     int ascii;
 } smooth_recon_opts;
 
-static const char *value_of(int argc, char **argv, int *i)
-{
-    if (*i + 1 >= argc) {
-        cli_error("%s needs a value", argv[*i]);
-        return NULL;
-    }
-    return argv[++*i];
-}
-
 /* Integer options: name, range, destination. */
 static bool int_option(const char *a, const char *v, smooth_recon_opts *o)
 {
@@ -107,7 +98,7 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
     smooth_recon_opts *o = ctx;
     const char *a = argv[*i], *v;
     if (strcmp(a, "--method") == 0) {
-        if (!(v = value_of(argc, argv, i)))
+        if (!(v = cli_option_value(argc, argv, i)))
             return -1;
         if (strcmp(v, "smooth") != 0) {
             cli_error("--method %s is not this method's (smooth)", v);
@@ -126,7 +117,7 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
     static const char *const ints[] = {"--refine", "--passes", "--k", "--n-min"};
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++)
         if (strcmp(a, ints[k]) == 0) {
-            if (!(v = value_of(argc, argv, i)))
+            if (!(v = cli_option_value(argc, argv, i)))
                 return -1;
             return int_option(a, v, o) ? 1 : -1;
         }
@@ -139,7 +130,7 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
         if (strcmp(a, reals[k]) != 0)
             continue;
         double x;
-        if (!(v = value_of(argc, argv, i)) || !cli_parse_double(a, v, &x))
+        if (!(v = cli_option_value(argc, argv, i)) || !cli_parse_double(a, v, &x))
             return -1;
         bool ok;
         switch (k) {

@@ -60,16 +60,6 @@ typedef struct smooth_opts {
     bool simplify;
 } smooth_opts;
 
-/* The value of option argv[*i], or NULL after reporting it missing. */
-static const char *value_of(int argc, char **argv, int *i)
-{
-    if (*i + 1 >= argc) {
-        cli_error("%s needs a value", argv[*i]);
-        return NULL;
-    }
-    return argv[++*i];
-}
-
 static int smooth_option(void *ctx, int argc, char **argv, int *i)
 {
     smooth_opts *o = ctx;
@@ -86,14 +76,14 @@ static int smooth_option(void *ctx, int argc, char **argv, int *i)
     }
 #define INT_OPT(name, lo, hi, dst)                                                             \
     if (strcmp(a, name) == 0) {                                                                \
-        if (!(v = value_of(argc, argv, i)) || !cli_parse_int(a, v, lo, hi, &n))                \
+        if (!(v = cli_option_value(argc, argv, i)) || !cli_parse_int(a, v, lo, hi, &n))                \
             return -1;                                                                         \
         dst = n;                                                                               \
         return 1;                                                                              \
     }
 #define POS_OPT(name, dst)                                                                     \
     if (strcmp(a, name) == 0) {                                                                \
-        if (!(v = value_of(argc, argv, i)) || !cli_parse_double(a, v, &x))                     \
+        if (!(v = cli_option_value(argc, argv, i)) || !cli_parse_double(a, v, &x))                     \
             return -1;                                                                         \
         if (!(x > 0)) {                                                                        \
             cli_error("%s must be positive, got '%s'", a, v);                                  \
@@ -125,7 +115,7 @@ static int smooth_option(void *ctx, int argc, char **argv, int *i)
     INT_OPT("--smooth", 0, 100, o->pre_passes)
     INT_OPT("--n-min", 1, 1000000, o->cluster.n_min)
     if (strcmp(a, "--sigma-max") == 0) {
-        if (!(v = value_of(argc, argv, i)) || !cli_parse_double(a, v, &x))
+        if (!(v = cli_option_value(argc, argv, i)) || !cli_parse_double(a, v, &x))
             return -1;
         if (x < 0 || x > 1.0 / 3.0 + 1e-12) {
             cli_error("--sigma-max must be between 0 and 1/3, got '%s'", v);
@@ -135,7 +125,7 @@ static int smooth_option(void *ctx, int argc, char **argv, int *i)
         return 1;
     }
     if (strcmp(a, "--max-diameter") == 0) {
-        if (!(v = value_of(argc, argv, i)))
+        if (!(v = cli_option_value(argc, argv, i)))
             return -1;
         if (strcmp(v, "inf") == 0) {
             o->cluster.max_diameter = INFINITY;
