@@ -872,7 +872,7 @@ typedef struct tessel_smooth_params {
                                  stays where the surface curves within a
                                  few h (thin parts; docs/smooth.md,
                                  section E), for about half again the
-                                 time and 64 bytes per point. 0 (default):
+                                 time and 76 bytes per point. 0 (default):
                                  off; other values are invalid */
 } tessel_smooth_params;
 TESSEL_API tessel_smooth_params tessel_smooth_params_default(void);

@@ -404,29 +404,37 @@ typedef struct frame_sums {
 /* The surface one fit found, for params.aggregate: the points d (offsets
  * from the query's position) with
  *     n.d = t + c0 u^2 + c1 uv + c2 v^2 + c3 u + c4 v + c5,
- * u = e1.d, v = e2.d (e1, e2 of length 1/h, so u and v are in h). A plane
- * has c = 0. t is NaN when the point has no fit. */
+ * u = e1.d, v = e2.d (e1, e2 of length 1/h, so u and v are in h), and
+ * its unit normal at the origin's foot point (computed once here, read by
+ * every neighbour). A plane has c = 0. t is NaN when the point has no
+ * fit. */
 typedef struct fit_surface {
-    float e1[3], e2[3], n[3], t, c[6];
+    float e1[3], e2[3], n[3], t, c[6], normal[3];
 } fit_surface;
 
 static void surface_set(fit_surface *sf, const frame_sums *fs, const double c[6])
 {
+    double m[3];
     for (int a = 0; a < 3; a++) {
         sf->e1[a] = (float)fs->e1[a];
         sf->e2[a] = (float)fs->e2[a];
         sf->n[a] = (float)fs->n[a];
+        m[a] = fs->n[a] - c[3] * fs->e1[a] - c[4] * fs->e2[a];
     }
+    if (!tsl_normalize(m))
+        tsl_load(sf->n, m);
     sf->t = (float)fs->t;
     for (int i = 0; i < 6; i++)
         sf->c[i] = (float)c[i];
+    for (int a = 0; a < 3; a++)
+        sf->normal[a] = (float)m[a];
 }
 
 static void surface_set_plane(fit_surface *sf, const double n[3], double t)
 {
     memset(sf, 0, sizeof *sf);
     for (int a = 0; a < 3; a++)
-        sf->n[a] = (float)n[a];
+        sf->n[a] = sf->normal[a] = (float)n[a];
     sf->t = (float)t;
 }
 
@@ -1320,8 +1328,8 @@ TSL_CLONES static void aggregate_range(const pass_ctx *x, fit_buf *b, size_t s0,
     const fit_ctl *f = x->f;
     const float inv_2s2 = (float)(1.0 / (2.0 * AGG_SIGMA * AGG_SIGMA * f->h * f->h));
     /* Scratch from the fit buffer: per surface the exponent of its weight,
-     * the point's move onto it and its normal; then the weights and
-     * unit normals and the weighted sums, over FIT_LANES lanes in a fixed
+     * the point's move onto it and its normal; then the weights, the
+     * weighted normals and the sums, over FIT_LANES lanes in a fixed
      * order. */
     float *e = b->ew, *w = b->om, *y[3] = {b->x, b->y, b->z}, *nm[3] = {b->t[0], b->t[1], b->t[2]};
     for (size_t s = s0; s < s1; s++) {
@@ -1344,12 +1352,9 @@ TSL_CLONES static void aggregate_range(const pass_ctx *x, fit_buf *b, size_t s0,
             const float *c = sf->c;
             float lift = sf->t + c[0] * u * u + c[1] * u * v + c[2] * v * v + c[3] * u +
                          c[4] * v + c[5] - z;
-            float g[3]; /* the fit's normal at its origin */
-            for (int a = 0; a < 3; a++)
-                g[a] = sf->n[a] - c[3] * sf->e1[a] - c[4] * sf->e2[a];
             for (int a = 0; a < 3; a++) {
                 y[a][m] = lift * sf->n[a]; /* the move onto this surface */
-                nm[a][m] = g[a];
+                nm[a][m] = sf->normal[a];
             }
             m++;
         }
@@ -1359,16 +1364,15 @@ TSL_CLONES static void aggregate_range(const pass_ctx *x, fit_buf *b, size_t s0,
         for (size_t j = m; j < mp; j++) {
             e[j] = EXP_MIN;
             for (int a = 0; a < 3; a++)
-                y[a][j] = 0.0f, nm[a][j] = a == 0 ? 1.0f : 0.0f;
+                y[a][j] = nm[a][j] = 0.0f;
         }
         for (size_t j = 0; j < mp; j++)
             w[j] = j < m ? fast_exp(e[j]) : 0.0f;
-        /* Unit normals, whose sign follows the point's (the surfaces are
-         * unoriented), with their weights. */
+        /* Weighted normals, whose sign follows the point's (the surfaces
+         * are unoriented). */
         for (size_t j = 0; j < mp; j++) {
             float gx = nm[0][j], gy = nm[1][j], gz = nm[2][j];
-            float r = w[j] / sqrtf(gx * gx + gy * gy + gz * gz);
-            r = gx * pn[0] + gy * pn[1] + gz * pn[2] < 0.0f ? -r : r;
+            float r = gx * pn[0] + gy * pn[1] + gz * pn[2] < 0.0f ? -w[j] : w[j];
             nm[0][j] = r * gx, nm[1][j] = r * gy, nm[2][j] = r * gz;
         }
         double W = lane_sum(w, mp), dy[3], nacc[3];
