@@ -12,7 +12,7 @@
  * whose centroid (and so its representative) sits at the cap's centre,
  * far from the ring's own points. Leaves are the clusters.
  *
- * Each node is partitioned stably inside one permutation array, so every
+ * Each node is partitioned stably inside one array of points, so every
  * leaf is a contiguous, increasing run of point indices, and leaves ordered
  * by position are the tree's depth-first order. Subtrees run as OpenMP
  * tasks on disjoint ranges; the arithmetic of a node does not depend on
@@ -51,10 +51,17 @@ void tessel_clusters_free(tessel_clusters *clusters)
     memset(clusters, 0, sizeof *clusters);
 }
 
+/* A point as the partition moves it: coordinates next to the index, so a
+ * node's passes read one contiguous run instead of gathering through a
+ * permutation (the top levels touch every point in random input order). */
+typedef struct bsp_point {
+    float x[3];
+    uint32_t id;
+} bsp_point;
+
 typedef struct bsp {
-    const float *xyz;
-    uint32_t *order;     /* the permutation being partitioned */
-    uint32_t *scratch;   /* same size, for stable partitions */
+    bsp_point *pts;      /* the points being partitioned */
+    bsp_point *scratch;  /* same size, for stable partitions */
     uint8_t *leaf_start; /* leaf_start[i] = 1 where a leaf's run begins */
     double sigma_max;
     double max_r2; /* (max_diameter / 2)^2, world units */
@@ -71,7 +78,7 @@ static bool split_plane(const bsp *b, size_t lo, size_t hi, double c[3], double 
     /* Centroid, then covariance about it (two passes: no cancellation). */
     double s[3] = {0, 0, 0};
     for (size_t i = lo; i < hi; i++) {
-        const float *p = b->xyz + 3 * (size_t)b->order[i];
+        const float *p = b->pts[i].x;
         s[0] += p[0];
         s[1] += p[1];
         s[2] += p[2];
@@ -80,7 +87,7 @@ static bool split_plane(const bsp *b, size_t lo, size_t hi, double c[3], double 
         c[k] = s[k] / (double)m;
     double a[9] = {0}, r2max = 0.0;
     for (size_t i = lo; i < hi; i++) {
-        const float *p = b->xyz + 3 * (size_t)b->order[i];
+        const float *p = b->pts[i].x;
         double x = p[0] - c[0], y = p[1] - c[1], z = p[2] - c[2];
         a[0] += x * x;
         a[1] += x * y;
@@ -119,21 +126,17 @@ static size_t partition(bsp *b, size_t lo, size_t hi, const double c[3], const d
 {
     size_t neg = 0;
     for (size_t i = lo; i < hi; i++) {
-        const float *p = b->xyz + 3 * (size_t)b->order[i];
+        const float *p = b->pts[i].x;
         double h = (p[0] - c[0]) * dir[0] + (p[1] - c[1]) * dir[1] + (p[2] - c[2]) * dir[2];
         neg += h < 0.0;
     }
     size_t a = lo, z = lo + neg;
     for (size_t i = lo; i < hi; i++) {
-        uint32_t id = b->order[i];
-        const float *p = b->xyz + 3 * (size_t)id;
+        const float *p = b->pts[i].x;
         double h = (p[0] - c[0]) * dir[0] + (p[1] - c[1]) * dir[1] + (p[2] - c[2]) * dir[2];
-        if (h < 0.0)
-            b->scratch[a++] = id;
-        else
-            b->scratch[z++] = id;
+        b->scratch[h < 0.0 ? a++ : z++] = b->pts[i];
     }
-    memcpy(b->order + lo, b->scratch + lo, (hi - lo) * sizeof *b->order);
+    memcpy(b->pts + lo, b->scratch + lo, (hi - lo) * sizeof *b->pts);
     return lo + neg;
 }
 
@@ -217,23 +220,25 @@ tessel_status tessel_cluster(const tessel_cloud *cloud, const tessel_cluster_par
 
     bsp b;
     memset(&b, 0, sizeof b);
-    b.xyz = cloud->xyz;
     b.sigma_max = p.sigma_max;
     b.n_min = p.n_min;
     double rmax = 0.5 * p.max_diameter * h;
     /* h == 0 (all points equal) makes every positive radius 0: coincident
      * points never split on diameter, so this is harmless. */
     b.max_r2 = isfinite(p.max_diameter) ? rmax * rmax : INFINITY;
-    b.order = tsl_alloc_array(n, sizeof *b.order);
+    b.pts = tsl_alloc_array(n, sizeof *b.pts);
     b.scratch = tsl_alloc_array(n, sizeof *b.scratch);
     b.leaf_start = tsl_calloc_array(n, 1);
     uint32_t *labels = tsl_alloc_array(n, sizeof *labels);
-    if (!b.order || !b.scratch || !b.leaf_start || !labels) {
+    uint32_t *order = NULL;
+    if (!b.pts || !b.scratch || !b.leaf_start || !labels) {
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
-    for (size_t i = 0; i < n; i++)
-        b.order[i] = (uint32_t)i;
+    for (size_t i = 0; i < n; i++) {
+        memcpy(b.pts[i].x, cloud->xyz + 3 * i, sizeof b.pts[i].x);
+        b.pts[i].id = (uint32_t)i;
+    }
 
     bsp *bp = &b;
 #ifdef _OPENMP
@@ -241,6 +246,13 @@ tessel_status tessel_cluster(const tessel_cloud *cloud, const tessel_cluster_par
 #pragma omp single
 #endif
     build(bp, 0, n);
+    free(b.scratch);
+    b.scratch = NULL;
+    order = tsl_alloc_array(n, sizeof *order);
+    if (!order) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
 
     size_t count = 0;
     for (size_t i = 0; i < n; i++)
@@ -254,25 +266,27 @@ tessel_status tessel_cluster(const tessel_cloud *cloud, const tessel_cluster_par
     for (size_t i = 0; i < n; i++) {
         if (b.leaf_start[i])
             offsets[c++] = i;
-        labels[b.order[i]] = (uint32_t)(c - 1);
+        order[i] = b.pts[i].id;
+        labels[order[i]] = (uint32_t)(c - 1);
     }
     offsets[count] = n;
 
     clusters->point_count = n;
     clusters->count = count;
     clusters->labels = labels;
-    clusters->order = b.order;
+    clusters->order = order;
     clusters->offsets = offsets;
     clusters->spacing = h;
     labels = NULL;
-    b.order = NULL;
+    order = NULL;
     st = tsl_progress(callbacks, "cluster", 1.0);
     if (st != TESSEL_OK)
         tessel_clusters_free(clusters);
 
 done:
-    free(b.order);
+    free(b.pts);
     free(b.scratch);
+    free(order);
     free(b.leaf_start);
     free(labels);
     return st;
