@@ -2,7 +2,8 @@
  * cluster, reduce, advancing front, refine), with the time of every stage
  * as in Table 1 of Mederos, Velho & de Figueiredo 2003:
  *   1. sizes: a fixed-seed torus (radii 1 and 0.35) sampled at random with
- *      Gaussian noise of half the mean spacing, 10^4 .. 10^7 points (the
+ *      Gaussian noise of --noise times the mean spacing (default 0.5; the
+ *      shared .pd.n05 scans have about 1), 10^4 .. 10^7 points (the
  *      largest given by --max); wall seconds of each stage, wall and CPU
  *      seconds of the whole pipeline, input points per (wall) second;
  *   2. with --data DIR: every NAME.pd.n05.ply and NAME.pd.ply in DIR, with
@@ -12,7 +13,7 @@
  *      --out DIR writes the meshes.
  *
  * usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K]
- *                       [--data DIR] [--out DIR] [--skip-sizes] */
+ *                       [--noise X] [--data DIR] [--out DIR] [--skip-sizes] */
 #include "tessel.h"
 #include "bench_data.h"
 
@@ -22,11 +23,12 @@
 #include <string.h>
 
 static uint64_t rng_state;
+static double noise_h = 0.5;
 static double urand(void) { return bench_unif(&rng_state); }
 static double gauss(void) { return bench_gauss(&rng_state); }
 
 /* n points uniformly at random on the torus (radii 1, 0.35) plus Gaussian
- * noise of sigma = 0.5 times the expected mean spacing per axis. */
+ * noise of sigma = noise_h times the expected mean spacing per axis. */
 static int noisy_torus(tessel_cloud *c, size_t n, uint64_t seed)
 {
     if (tessel_cloud_alloc(c, n, 0, 0) != TESSEL_OK)
@@ -42,7 +44,7 @@ static int noisy_torus(tessel_cloud *c, size_t n, uint64_t seed)
         double rr = R + r * cos(v);
         double p[3] = {rr * cos(u), rr * sin(u), r * sin(v)};
         for (int k = 0; k < 3; k++)
-            c->xyz[3 * i + (size_t)k] = (float)(p[k] + 0.5 * spacing * gauss());
+            c->xyz[3 * i + (size_t)k] = (float)(p[k] + noise_h * spacing * gauss());
         i++;
     }
     return 1;
@@ -66,9 +68,10 @@ static void header(void)
 
 static void run_sizes(size_t max, const tessel_smooth_recon_params *p)
 {
-    printf("Noisy torus, random sampling, noise 0.5 h; wall seconds per stage "
+    printf("Noisy torus, random sampling, noise %.2g h; wall seconds per stage "
            "(h = spacing estimate; cluster = clusters + representatives), cpu = CPU "
-           "seconds of all threads\n");
+           "seconds of all threads\n",
+           noise_h);
     header();
     for (size_t n = 10000; n <= max; n *= 10) {
         tessel_cloud c;
@@ -157,12 +160,15 @@ int main(int argc, char **argv)
             dir = argv[++i];
         else if (!strcmp(argv[i], "--out") && i + 1 < argc)
             out = argv[++i];
+        else if (!strcmp(argv[i], "--noise") && i + 1 < argc &&
+                 (noise_h = strtod(argv[i + 1], NULL)) >= 0.0 && noise_h < 100.0)
+            i++;
         else if (!strcmp(argv[i], "--skip-sizes"))
             skip_sizes = 1;
         else {
             fprintf(stderr,
                     "usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K] "
-                    "[--data DIR] [--out DIR] [--skip-sizes]\n");
+                    "[--noise X] [--data DIR] [--out DIR] [--skip-sizes]\n");
             return 1;
         }
     }
