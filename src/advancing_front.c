@@ -1230,24 +1230,35 @@ static tessel_status commit(af *s, uint32_t id, const af_plan *plan)
 /* ------------------------------------------------------------------------ */
 
 /* Sign that makes a seed's normal agree with its surroundings: the nearest
- * existing triangle within reach, so that fronts meeting later have
- * matching orientations and can join; else the points' normals when there
- * are any; else +1. */
+ * existing triangle (by centroid, ties to the lower id) within reach, so
+ * that fronts meeting later have matching orientations and can join; else
+ * the points' normals when there are any; else +1. The search widens from
+ * the seed's own size: a triangle whose centroid is within r of the
+ * seed's meets the box of half-size r, so once the nearest found is that
+ * close no wider box can hold a nearer one. One box of the whole reach
+ * (twice the longest edge so far) made every seed cost a scan of a large
+ * part of the mesh on scans with a few long edges. */
 static tessel_status seed_sign(af *s, const af_tri *x, int *sign)
 {
     *sign = 0;
-    if (s->nt > 0) {
-        double c[3], lo[3], hi[3];
+    double c[3];
+    for (int i = 0; i < 3; i++)
+        c[i] = (x->p[0][i] + x->p[1][i] + x->p[2][i]) / 3.0;
+    double reach = 2.0 * dmax(x->maxlen, s->max_edge);
+    for (double r = 2.0 * x->maxlen; s->nt > 0; r *= 2.0) {
+        bool last = !(r < reach);
+        if (last)
+            r = reach;
+        double lo[3], hi[3];
         for (int i = 0; i < 3; i++) {
-            c[i] = (x->p[0][i] + x->p[1][i] + x->p[2][i]) / 3.0;
-            double reach = 2.0 * dmax(x->maxlen, s->max_edge);
-            lo[i] = c[i] - reach;
-            hi[i] = c[i] + reach;
+            lo[i] = c[i] - r;
+            hi[i] = c[i] + r;
         }
         tessel_status st = tsl_trigrid_query(&s->grid, lo, hi);
         if (st)
             return st;
         double best = INFINITY;
+        uint32_t best_t = NONE;
         for (size_t i = 0; i < s->grid.found_count; i++) {
             uint32_t t = s->grid.found[i];
             if (s->tri[3 * (size_t)t] == NONE)
@@ -1259,14 +1270,20 @@ static tessel_status seed_sign(af *s, const af_tri *x, int *sign)
                     m += s->xyz[3 * (size_t)s->tri[3 * (size_t)t + q] + j] / 3.0;
                 d2 += (m - c[j]) * (m - c[j]);
             }
-            if (d2 < best) {
+            if (d2 < best || (d2 == best && t < best_t)) {
                 best = d2;
-                double dot = 0.0;
-                for (int j = 0; j < 3; j++)
-                    dot += x->n[j] * s->ti[t].n[j];
-                *sign = dot < 0.0 ? -1 : 1;
+                best_t = t;
             }
         }
+        if (best_t != NONE && (last || best <= r * r)) {
+            double dot = 0.0;
+            for (int j = 0; j < 3; j++)
+                dot += x->n[j] * s->ti[best_t].n[j];
+            *sign = dot < 0.0 ? -1 : 1;
+            break;
+        }
+        if (last)
+            break;
     }
     if (*sign == 0 && s->pnormals) {
         double sum = 0.0;
