@@ -25,7 +25,10 @@
  * into a grid of cells a little wider than the distance to the k-th
  * neighbour and serves all points of a cell from the same 27 cells (more
  * rings of cells for the rare point whose neighbours reach farther): the
- * same neighbours as the kd-tree, at a fraction of the cost. Later passes
+ * same neighbours as the kd-tree, at a fraction of the cost. Where the
+ * density is far above the mean the cells are sized for (the near field
+ * of a range scan), a cell's 27 would hold thousands of points and the
+ * kd-tree answers its points instead. Later passes
  * reuse those neighbours at their new positions and take one more IRLS
  * step from the previous pass's normal (with the quadric: its height over
  * the plane across that normal, and its own normal at the point). Every
@@ -1174,6 +1177,10 @@ typedef struct pass_ctx {
     uint16_t *cnt; /* neighbours per point */
     fit_surface *surf; /* each point's fitted surface (params.aggregate), or
                           NULL */
+    /* For crowded blocks: a kd-tree over the cloud and each point's sorted
+     * position; NULL when no block can be crowded. */
+    const tessel_index *crowd_index;
+    const uint32_t *pos_of;
 } pass_ctx;
 
 typedef struct pass_count {
@@ -1188,6 +1195,51 @@ static void count_fit(pass_count *c, bool fit, uint32_t its, uint32_t max_iterat
     } else {
         c->iterations += its;
         c->unconverged += its >= max_iterations;
+    }
+}
+
+/* Records point s's neighbours t (sorted positions, for the later passes)
+ * and smooths it. */
+static inline void fit_first(const pass_ctx *x, fit_buf *fb, uint32_t s, const topk *t,
+                             pass_count *pc)
+{
+    const tsl_grid *g = x->g;
+    const fit_ctl *f = x->f;
+    const float *q = g->sxyz + 3 * (size_t)s;
+    uint32_t *nb = x->nb + (size_t)s * f->k;
+    for (size_t j = 0; j < t->cnt; j++) {
+        const float *p = g->sxyz + 3 * (size_t)t->pos[j];
+        fb->x[j] = p[0] - q[0];
+        fb->y[j] = p[1] - q[1];
+        fb->z[j] = p[2] - q[2];
+        nb[j] = t->pos[j];
+    }
+    x->cnt[s] = (uint16_t)t->cnt;
+    fb->m = fb->filled = t->cnt;
+    uint32_t its;
+    const float *nn = x->ref_nrm && t->cnt ? x->ref_nrm + 3 * (size_t)t->pos[0] : NULL;
+    bool fit = solve_one(f, q, fb, NULL, nn, x->has_viewpoint, x->viewpoint,
+                         x->out_xyz + 3 * (size_t)s, x->out_nrm + 3 * (size_t)s, &its,
+                         x->surf ? x->surf + s : NULL);
+    count_fit(pc, fit, its, f->max_iterations);
+}
+
+/* The points of a crowded cell: their k nearest within the cut-off from
+ * the kd-tree, which returns them in the same order as the grid search. */
+static void crowded_cell(const pass_ctx *x, fit_buf *fb, size_t ci, pass_count *pc)
+{
+    const tsl_grid *g = x->g;
+    const float r2max = (float)(x->f->rmax * x->f->rmax);
+    topk t;
+    t.k = x->f->k;
+    for (uint32_t s = g->start[ci]; s < g->start[ci + 1]; s++) {
+        size_t got = tessel_index_knn(x->crowd_index, g->sxyz + 3 * (size_t)s, t.k, t.id, t.d);
+        t.cnt = 0;
+        while (t.cnt < got && t.d[t.cnt] <= r2max) {
+            t.pos[t.cnt] = x->pos_of[t.id[t.cnt]];
+            t.cnt++;
+        }
+        fit_first(x, fb, s, &t, pc);
     }
 }
 
@@ -1213,28 +1265,27 @@ TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, siz
     size_t m = 0;
     for (size_t r = 0; r < n1; r++)
         m += run1[2 * r + 1] - run1[2 * r];
-    /* A crowded block (very uneven density) is scanned run by run. */
-    bool blocked = m <= BLOCK_CAP;
-    if (blocked) {
-        b->m = 0;
-        for (size_t r = 0; r < n1; r++)
-            for (uint32_t s = run1[2 * r]; s < run1[2 * r + 1]; s++) {
-                const float *p = g->sxyz + 3 * (size_t)s;
-                b->x[b->m] = p[0], b->y[b->m] = p[1], b->z[b->m] = p[2];
-                b->pos[b->m++] = s;
-            }
+    /* A crowded block (density far above the mean the cells are sized
+     * for) would cost every query a scan of all its points. */
+    if (m > BLOCK_CAP) {
+        crowded_cell(x, fb, ci, pc);
+        return;
     }
+    b->m = 0;
+    for (size_t r = 0; r < n1; r++)
+        for (uint32_t s = run1[2 * r]; s < run1[2 * r + 1]; s++) {
+            const float *p = g->sxyz + 3 * (size_t)s;
+            b->x[b->m] = p[0], b->y[b->m] = p[1], b->z[b->m] = p[2];
+            b->pos[b->m++] = s;
+        }
     float guess = (float)(g->c * g->c);
 
     for (uint32_t s = g->start[ci]; s < g->start[ci + 1]; s++) {
         const float *q = g->sxyz + 3 * (size_t)s;
         t.cnt = 0;
         t.k = f->k;
-        bool ids = !blocked; /* t.id filled (the block leaves it) */
-        if (blocked)
-            topk_block(&t, b, g, q, r2max, &guess);
-        else
-            topk_scan(&t, g, q, run1, n1, r2max);
+        bool ids = false; /* t.id filled (the block leaves it) */
+        topk_block(&t, b, g, q, r2max, &guess);
         /* The cells within Chebyshev distance `ring` hold every point
          * within `cover` of q; widen until that reaches the k-th neighbour
          * (or the cut-off). Cells at the grid's border cover everything
@@ -1262,22 +1313,7 @@ TSL_CLONES static void search_cell(const pass_ctx *x, block *b, fit_buf *fb, siz
             }
             topk_ring(&t, g, q, cc, ring + 1, r2max);
         }
-        uint32_t *nb = x->nb + (size_t)s * f->k;
-        for (size_t j = 0; j < t.cnt; j++) {
-            const float *p = g->sxyz + 3 * (size_t)t.pos[j];
-            fb->x[j] = p[0] - q[0];
-            fb->y[j] = p[1] - q[1];
-            fb->z[j] = p[2] - q[2];
-            nb[j] = t.pos[j];
-        }
-        x->cnt[s] = (uint16_t)t.cnt;
-        fb->m = fb->filled = t.cnt;
-        uint32_t its;
-        const float *nn = x->ref_nrm && t.cnt ? x->ref_nrm + 3 * (size_t)t.pos[0] : NULL;
-        bool fit = solve_one(f, q, fb, NULL, nn, x->has_viewpoint, x->viewpoint,
-                             x->out_xyz + 3 * (size_t)s, x->out_nrm + 3 * (size_t)s, &its,
-                             x->surf ? x->surf + s : NULL);
-        count_fit(pc, fit, its, f->max_iterations);
+        fit_first(x, fb, s, &t, pc);
     }
 }
 
@@ -1422,6 +1458,8 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     uint16_t *cnt = NULL;
     float *ref0 = NULL;
     fit_surface *surf = NULL;
+    tessel_index *crowd_index = NULL;
+    uint32_t *pos_of = NULL;
     tessel_cloud res;
     memset(&res, 0, sizeof res);
     for (int i = 0; i < 4; i++)
@@ -1471,6 +1509,25 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     }
     if (st != TESSEL_OK)
         goto done;
+    /* A block of 27 cells can be crowded only if some cell holds more
+     * than a 27th of BLOCK_CAP (uneven scans); then the kd-tree serves
+     * the crowded ones. */
+    size_t max_cell = 0;
+    for (size_t c = 0; c < g.ncell; c++)
+        if (g.start[c + 1] - g.start[c] > max_cell)
+            max_cell = g.start[c + 1] - g.start[c];
+    if (27 * max_cell > BLOCK_CAP) {
+        if ((st = tessel_index_build(&crowd_index, cloud->xyz, n)))
+            goto done;
+        if (!(pos_of = tsl_alloc_array(n, sizeof *pos_of))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        for (size_t s = 0; s < n; s++)
+            pos_of[g.perm[s]] = (uint32_t)s;
+        x.crowd_index = crowd_index;
+        x.pos_of = pos_of;
+    }
     if (cloud->normals) {
         if (!(ref0 = tsl_alloc_array(n, 3 * sizeof(float)))) {
             st = TESSEL_ERR_NOMEM;
@@ -1606,6 +1663,8 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
 
 done:
     tsl_grid_free(&g);
+    tessel_index_destroy(crowd_index);
+    free(pos_of);
     for (int i = 0; i < 4; i++)
         free(buf[i]);
     free(nb);

@@ -554,7 +554,9 @@ static void test_pass_matches_projector(void)
         c.xyz[3 * i] = (float)x, c.xyz[3 * i + 1] = (float)y;
         c.xyz[3 * i + 2] = (float)(0.05 * sin(6 * x) + 0.002 * gauss());
     }
-    for (; i < n_plane + n_clump; i++) { /* 100x denser patch */
+    /* 100x denser patch: its blocks of cells are crowded, so the first
+     * pass takes its neighbours from the kd-tree there. */
+    for (; i < n_plane + n_clump; i++) {
         c.xyz[3 * i] = (float)(0.5 + 0.05 * urand());
         c.xyz[3 * i + 1] = (float)(0.5 + 0.05 * urand());
         c.xyz[3 * i + 2] = (float)(0.05 * sin(3.0) + 0.001 * gauss());
