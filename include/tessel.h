@@ -327,7 +327,9 @@ typedef struct tessel_cloud_stats {
     double bbox_min[3], bbox_max[3]; /* world coordinates */
     double diagonal;                 /* bounding-box diagonal */
     double mean_spacing;             /* mean nearest-neighbour distance
-                                        (excluding exact duplicates) */
+                                        (excluding exact duplicates, and
+                                        isolated points whose distance is
+                                        over 32 times the median) */
     double median_spacing;
     size_t exact_duplicates;         /* points equal to an earlier point */
     size_t outliers;                 /* isolated points by local density */
@@ -337,8 +339,9 @@ TESSEL_API tessel_status tessel_cloud_stats_compute(const tessel_cloud *cloud,
                                                     const tessel_stats_params *params,
                                                     tessel_cloud_stats *stats);
 
-/* Mean nearest-neighbour spacing of a cloud (sampled like the stats). The
- * unit of every "multiple of the spacing" parameter. */
+/* Mean nearest-neighbour spacing of a cloud (sampled like the stats, far
+ * outliers left out: mean_spacing). The unit of every "multiple of the
+ * spacing" parameter. */
 TESSEL_API tessel_status tessel_cloud_spacing(const tessel_cloud *cloud, double *spacing);
 
 /* Merges points closer than tolerance (absolute length; 0 merges exact

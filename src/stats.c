@@ -225,8 +225,15 @@ static tessel_status distinct_build(const tessel_cloud *cloud, distinct_set *d)
     return st;
 }
 
-/* Mean and median distance from evenly strided distinct points to their
- * nearest distinct neighbour; both 0 when there are fewer than two. */
+/* Nearest-neighbour distances beyond this many medians are isolated points
+ * (stray returns, far outliers): left out of the mean, which one point a
+ * thousand spacings away would otherwise double on a cloud of 10^5. The
+ * shared scans, range scans included, stay below 20. */
+#define SPACING_OUTLIER_MEDIANS 32.0
+
+/* Mean (without isolated points) and median distance from evenly strided
+ * distinct points to their nearest distinct neighbour; both 0 when there
+ * are fewer than two. */
 static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int threads,
                                 double *mean, double *median)
 {
@@ -237,8 +244,12 @@ static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int t
     if (m > d->count)
         m = d->count;
     float *dist = tsl_alloc_array(m, sizeof *dist);
-    if (!dist)
+    float *sorted = tsl_alloc_array(m, sizeof *sorted);
+    if (!dist || !sorted) {
+        free(dist);
+        free(sorted);
         return TESSEL_ERR_NOMEM;
+    }
     ptrdiff_t ms = (ptrdiff_t)m;
     int nthreads = tsl_threads(threads);
     (void)nthreads;
@@ -253,11 +264,17 @@ static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int t
         tessel_index_knn(d->index, d->xyz + 3 * i, 2, idx, d2);
         dist[s] = sqrtf(d2[1]);
     }
-    double sum = 0.0;
+    memcpy(sorted, dist, m * sizeof *dist);
+    *median = median_float(sorted, m);
+    free(sorted);
+    double limit = SPACING_OUTLIER_MEDIANS * *median, sum = 0.0;
+    size_t used = 0;
     for (size_t s = 0; s < m; s++)
-        sum += dist[s];
-    *mean = sum / (double)m;
-    *median = median_float(dist, m);
+        if (dist[s] <= limit) {
+            sum += dist[s];
+            used++;
+        }
+    *mean = used ? sum / (double)used : 0.0;
     free(dist);
     return TESSEL_OK;
 }

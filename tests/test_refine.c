@@ -402,6 +402,33 @@ static int cancel_at_refine(void *user, const char *stage, double fraction)
     return strcmp(stage, "refine") == 0;
 }
 
+/* One stray point far from the surface: the spacing (the unit of every
+ * length of the pipeline) must come from the surface, and the sphere must
+ * come out closed as without it (it used to become a few triangles). */
+static void test_pipeline_far_point(void)
+{
+    tessel_cloud s, c;
+    CHECK(surf_sphere(&s, 0.04, 6) == TESSEL_OK);
+    free(s.normals);
+    s.normals = NULL;
+    surf_noise(&s, 0.02, 7);
+    CHECK(tessel_cloud_alloc(&c, s.count + 1, 0, 0) == TESSEL_OK);
+    memcpy(c.xyz, s.xyz, 3 * s.count * sizeof *c.xyz);
+    const float far[3] = {1e4f, 0.0f, 0.0f};
+    memcpy(c.xyz + 3 * s.count, far, sizeof far);
+    tessel_smooth_recon_stats st;
+    tessel_mesh m;
+    CHECK(tessel_reconstruct_smooth(&c, NULL, NULL, &m, &st) == TESSEL_OK);
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(valid_closed(&r, 0) && st.spacing < 0.1,
+              "sphere with a far point: spacing %g, %zu triangles, %zu boundary edges, %zu "
+              "components",
+              st.spacing, m.triangle_count, r.boundary_edges, r.components);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&s);
+}
+
 static void test_pipeline_threads_and_cancel(void)
 {
     /* Same bits for 1 and 2 threads; a progress callback that says stop
@@ -439,6 +466,7 @@ int main(void)
     test_pipeline_narrow_torus();
     test_pipeline_open();
     test_pipeline_sheets();
+    test_pipeline_far_point();
     test_pipeline_threads_and_cancel();
     return TEST_SUMMARY();
 }

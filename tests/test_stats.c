@@ -1,7 +1,8 @@
 /* Cloud statistics: a regular grid's spacing is its step; bounding box in
  * world coordinates; duplicates counted and merged exactly (attributes and
  * organized grid follow); merging with a tolerance; planted far points found
- * as outliers; thread count does not change anything. */
+ * as outliers and left out of the spacing; thread count does not change
+ * anything. */
 #include "tessel.h"
 #include "test.h"
 
@@ -180,6 +181,28 @@ static void test_outliers(void)
     tessel_cloud_free(&c);
 }
 
+/* A few far points (stray returns of a scanner) must not set the unit of
+ * every length: without leaving them out, three points 10^5 away would
+ * make the mean spacing of this 0.25 grid about 5. */
+static void test_spacing_far_points(void)
+{
+    tessel_cloud g, c;
+    grid_cloud(&g, 300, 200, 0.25f);
+    CHECK(tessel_cloud_alloc(&c, g.count + 3, 0, 0) == TESSEL_OK);
+    memcpy(c.xyz, g.xyz, 3 * g.count * sizeof *c.xyz);
+    const float far[3][3] = {{1e5f, 0.0f, 0.5f}, {-1e5f, 3e4f, 0.5f}, {10.0f, 10.0f, 2e5f}};
+    memcpy(c.xyz + 3 * g.count, far, sizeof far);
+    double sp = 0.0;
+    CHECK_MSG(tessel_cloud_spacing(&c, &sp) == TESSEL_OK && fabs(sp - 0.25) < 1e-6,
+              "spacing with far points %g", sp);
+    tessel_cloud_stats s;
+    CHECK(tessel_cloud_stats_compute(&c, NULL, &s) == TESSEL_OK);
+    CHECK(fabs(s.mean_spacing - 0.25) < 1e-6 && fabs(s.median_spacing - 0.25) < 1e-6);
+    CHECK(s.outliers == 3);
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&g);
+}
+
 static void test_edges(void)
 {
     tessel_cloud c;
@@ -211,6 +234,7 @@ int main(void)
     test_grid_spacing();
     test_merge_grid_and_tolerance();
     test_outliers();
+    test_spacing_far_points();
     test_edges();
     return TEST_SUMMARY();
 }
