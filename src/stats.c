@@ -226,8 +226,8 @@ static tessel_status distinct_build(const tessel_cloud *cloud, distinct_set *d)
 }
 
 /* Nearest-neighbour distances beyond this many medians are isolated points
- * (stray returns, far outliers): left out of the mean, which one point a
- * thousand spacings away would otherwise double on a cloud of 10^5. The
+ * (stray returns, far outliers): left out of the mean, which a single point
+ * 10^5 spacings away would otherwise double on a cloud of 10^5 points. The
  * shared scans, range scans included, stay below 20. */
 #define SPACING_OUTLIER_MEDIANS 32.0
 
