@@ -630,10 +630,14 @@ static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3
 }
 
 /* Flips the diagonal {u, v} of its two triangles when the other diagonal
- * is shorter and the result is valid. */
-static tessel_status flip_edge(rf *r, uint32_t h, bool *done)
+ * is shorter and the result is valid. *again: refused for a reason outside
+ * the two triangles (the other diagonal exists, or the flip would cut the
+ * mesh), so a later pass must look at it again even if they stay as they
+ * are. */
+static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
 {
     *done = false;
+    *again = false;
     uint32_t g = r->twin[h];
     if (g == NONE)
         return TESSEL_OK;
@@ -651,8 +655,10 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done)
     tsl_sub(pb, pa, d2);
     /* The paper's rule, with a margin so that no edge flips back and forth;
      * then the edge map (a cache miss on large meshes: last). */
-    if (!(tsl_dot(d2, d2) < (1.0 - 1e-6) * tsl_dot(d1, d1)) ||
-        map_get(&r->edges, a, b) != NONE)
+    if (!(tsl_dot(d2, d2) < (1.0 - 1e-6) * tsl_dot(d1, d1)))
+        return TESSEL_OK;
+    *again = true;
+    if (map_get(&r->edges, a, b) != NONE)
         return TESSEL_OK;
     double n1[3], n2[3], avg[3];
     tri_cross(r, T1, n1);
@@ -704,7 +710,57 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done)
         return st;
     r->stats.flips++;
     *done = true;
+    *again = false;
     return TESSEL_OK;
+}
+
+/* Flip passes until none flips (at most MAX_FLIP_PASSES), each in half-edge
+ * order. The first pass looks at every edge; a later one only at the edges
+ * whose answer may have changed: the six of the two triangles of every
+ * flip (marked on both sides as the pass goes, so a mark ahead of the
+ * cursor is taken in the same pass, as a full pass would) and those refused
+ * for a reason outside their own two triangles. Every other edge would be
+ * refused again for the same reason, so the flips are exactly those of
+ * full passes, for a fraction of the reads: on 10^6 points the later
+ * passes flip a few hundred edges out of 900,000. */
+static tessel_status flip_passes(rf *r)
+{
+    size_t nh = 3 * r->nt;
+    uint8_t *look = tsl_alloc_array(nh ? nh : 1, 1);
+    if (!look)
+        return TESSEL_ERR_NOMEM;
+    memset(look, 1, nh);
+    tessel_status st = TESSEL_OK;
+    for (int pass = 0; pass < MAX_FLIP_PASSES && !st; pass++) {
+        size_t flips = 0;
+        for (size_t hh = 0; hh < nh; hh++) {
+            if (!look[hh])
+                continue;
+            look[hh] = 0;
+            uint32_t g = r->twin[hh];
+            if (g == NONE || g < hh)
+                continue;
+            bool done, again;
+            if ((st = flip_edge(r, (uint32_t)hh, &done, &again)))
+                break;
+            look[hh] = again;
+            if (!done)
+                continue;
+            flips++;
+            const uint32_t quad[2] = {(uint32_t)hh / 3, g / 3};
+            for (int q = 0; q < 2; q++)
+                for (uint32_t i = 0; i < 3; i++) {
+                    uint32_t e = 3 * quad[q] + i, w = r->twin[e];
+                    look[e] = 1;
+                    if (w != NONE)
+                        look[w] = 1;
+                }
+        }
+        if (!flips)
+            break;
+    }
+    free(look);
+    return st;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -952,22 +1008,8 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
     }
     if (st)
         goto done;
-    if (p->flip) {
-        for (int pass = 0; pass < MAX_FLIP_PASSES; pass++) {
-            size_t flips = 0;
-            for (size_t hh = 0; hh < 3 * r->nt; hh++) {
-                uint32_t g = r->twin[hh];
-                if (g == NONE || g < hh)
-                    continue;
-                bool done_flip;
-                if ((st = flip_edge(r, (uint32_t)hh, &done_flip)))
-                    goto done;
-                flips += done_flip;
-            }
-            if (!flips)
-                break;
-        }
-    }
+    if (p->flip)
+        st = flip_passes(r);
 done:
     free(jobs);
     free(want);
