@@ -205,42 +205,199 @@ static void test_scan(void)
 
 /* ---- offsets, local coordinates and text formatting ---- */
 
+/* Whether a + b is exact in double (Knuth's TwoSum error is zero). */
+static bool exact_sum(double a, double b)
+{
+    double s = a + b, bb = s - a;
+    return (a - (s - bb)) + (b - bb) == 0.0;
+}
+
+static bool same_bits(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
+
+/* Checks, for one (world, offset) pair, what the round trip needs from
+ * tsl_local_coord and tsl_format_coord. Returns a bit mask of failures:
+ * 1 offset + f not exact, 2 not idempotent, 4 floor changed within 2^24,
+ * 8 outside the 1e15 readers keep, 16 more than one float ulp off,
+ * 32 text does not read back (floor and float). */
+static unsigned local_coord_failures(double world, double offset)
+{
+    unsigned bad = 0;
+    float f = tsl_local_coord(world, offset);
+    double s = offset + (double)f;
+    if (!exact_sum(offset, (double)f))
+        bad |= 1;
+    if (!same_bits(tsl_local_coord(s, offset), f))
+        bad |= 2;
+    if (fabs(world - offset) < 16777214.0 && floor(s) != floor(world))
+        bad |= 4;
+    if (fabs(s) > 1e15)
+        bad |= 8;
+    double ulp = (double)nextafterf(fabsf(f), INFINITY) - (double)fabsf(f);
+    if (fabs(s - world) > ulp * 1.000001 + fabs(world) * 1e-16)
+        bad |= 16;
+    char buf[64];
+    int n = tsl_format_coord(buf, offset, f);
+    const char *p = buf;
+    double v;
+    if (n <= 0 || n >= 32 || !tsl_scan_double(&p, buf + n, &v) || p != buf + n ||
+        floor(v) != floor(s) || !same_bits(tsl_local_coord(v, offset), f))
+        bad |= 32;
+    return bad;
+}
+
+/* A world coordinate for the local-coordinate checks: near the offset at
+ * every scale, on and just off integers, tiny, huge, far on the other side. */
+static double tricky_world(double offset, int kind)
+{
+    double r = rnd() - 0.5, w;
+    switch (kind % 10) {
+    case 0: w = offset + r * pow(2.0, (double)(rnd_u64() % 80) - 40.0); break;
+    case 1: w = offset + floor(r * 64) + (rnd() < 0.5 ? -1 : 1) * pow(2.0, -(double)(rnd_u64() % 70)); break;
+    case 2: w = r * pow(10.0, -(double)(rnd_u64() % 320)); break; /* tiny, denormal */
+    case 3: w = (rnd() < 0.5 ? -1e15 : 1e15) * (1.0 - rnd() * 1e-9); break;
+    case 4: w = r * 2e15; break;
+    case 5: w = offset + (r < 0 ? -1 : 1) * (16777216.0 + floor(r * 8) + rnd() * 2); break;
+    case 6: w = floor(offset + r * 1e6); break; /* on an integer */
+    case 7: w = -offset + r * 100; break;
+    case 8: w = offset + r * 2e7; break;
+    default: w = nextafter(offset + floor(r * 10), rnd() < 0.5 ? -INFINITY : INFINITY); break;
+    }
+    if (!(fabs(w) <= 1e15))
+        w = copysign(1e15, w);
+    return w;
+}
+
+static void test_local_coord(void)
+{
+    /* Offsets as the rule gives them (0, or an integer median beyond 4096)
+     * and worlds anywhere a reader keeps: strays put local coordinates far
+     * below 1, negative, in (-1, 1) and up to 2e15. */
+    static const double offsets[] = {0,      4097,     -4097,   500000,   -700000,
+                                     5400000, 6378137, -6378137, 123456789, -999999999999999.0,
+                                     999999999999999.0, 562949953421311.0};
+    size_t fails[6] = {0}, unordered = 0, total = 0;
+    for (size_t o = 0; o < sizeof offsets / sizeof offsets[0]; o++) {
+        for (int i = 0; i < 40000; i++) {
+            double offset = offsets[o];
+            if (i % 7 == 6 && fabs(offset) < 5e14)
+                offset = floor(offset * (0.5 + rnd()));
+            double w = tricky_world(offset, i);
+            unsigned bad = local_coord_failures(w, offset);
+            for (int k = 0; k < 6; k++)
+                fails[k] += (bad >> k) & 1;
+            /* Monotone: the next double up never gets a smaller float. */
+            double w2 = i % 2 ? nextafter(w, INFINITY) : w + fabs(w) * rnd() * 1e-7;
+            if (w2 <= 1e15 && tsl_local_coord(w2, offset) < tsl_local_coord(w, offset))
+                unordered++;
+            total++;
+        }
+    }
+    CHECK_MSG(fails[0] == 0 && fails[1] == 0 && fails[2] == 0 && fails[3] == 0 &&
+                  fails[4] == 0 && fails[5] == 0 && unordered == 0,
+              "of %zu: inexact %zu, not idempotent %zu, floor %zu, range %zu, ulp %zu, "
+              "text %zu, not monotone %zu",
+              total, fails[0], fails[1], fails[2], fails[3], fails[4], fails[5], unordered);
+
+    /* Never up across an integer, on both sides of zero; far values go
+     * toward zero. */
+    CHECK(tsl_local_coord(700000.99999999, 700000) == nextafterf(1.0f, 0.0f));
+    CHECK(tsl_local_coord(699998.999999999, 700000) == nextafterf(-1.0f, -INFINITY));
+    CHECK(tsl_local_coord(-1e-20, 5000) == nextafterf(-5000.0f, -INFINITY)); /* t inexact */
+    CHECK(floor(5000.0 + (double)tsl_local_coord(-1e-20, 5000)) == -1.0);
+    CHECK(tsl_local_coord(-1e-300, 0) < 0.0f); /* not -0.0: floor -1 kept */
+    CHECK(tsl_local_coord(-1e15, 1e15) >= -2e15f && 1e15 + (double)tsl_local_coord(-1e15, 1e15) >= -1e15);
+    CHECK(1e15 + (double)tsl_local_coord(-999999999999999.875, 1e15) >= -1e15);
+}
+
+/* floor of the lower median of the points j*n/m (m = min(n, 8192)): the
+ * documented rule, by brute force (insertion sort). */
+static double median_floor(const double *xyz, size_t n, int axis)
+{
+    size_t m = n < 8192 ? n : 8192;
+    double *v = malloc(m * sizeof *v);
+    for (size_t j = 0; j < m; j++) {
+        double x = xyz[3 * (size_t)((uint64_t)j * n / m) + (size_t)axis];
+        size_t k = j;
+        while (k > 0 && v[k - 1] > x) {
+            v[k] = v[k - 1];
+            k--;
+        }
+        v[k] = x;
+    }
+    double c = floor(v[(m - 1) / 2]);
+    free(v);
+    return c;
+}
+
+static double rule_offset(const double *xyz, size_t n, int axis)
+{
+    double c = median_floor(xyz, n, axis);
+    return c >= -4096 && c <= 4096 ? 0.0 : c;
+}
+
 static void test_offsets(void)
 {
-    CHECK(tsl_choose_offset(0, 100) == 0.0);
-    CHECK(tsl_choose_offset(-4096, 4096.99) == 0.0);
-    CHECK(tsl_choose_offset(-4096.5, 0) == -4098.0);
-    CHECK(tsl_choose_offset(0, 4097) == -1.0);
-    CHECK(tsl_choose_offset(500000.3, 501000) == 499999.0);
-    CHECK(tsl_choose_offset(-6378137.5, -6378000) == -6378139.0);
-    CHECK(tsl_choose_offset(NAN, 1) == 0.0);
-    CHECK(tsl_choose_offset(1, 0) == 0.0);
+    double off[3];
+    CHECK(tsl_choose_offset(NULL, 0, off) == TESSEL_OK && off[0] == 0 && off[1] == 0 &&
+          off[2] == 0);
+    /* Thresholds: the median's floor decides, per axis. */
+    const double edge[3][3] = {{4096.99, -4096.0, 4097.0},
+                               {4096.5, -4096.5, -4097.0},
+                               {0.0, -5000.0, 1e9}};
+    CHECK(tsl_choose_offset(&edge[0][0], 1, off) == TESSEL_OK && off[0] == 0 &&
+          off[1] == 0 && off[2] == 4097);
+    CHECK(tsl_choose_offset(&edge[1][0], 1, off) == TESSEL_OK && off[0] == 0 &&
+          off[1] == -4097 && off[2] == -4097);
+    /* Three points: the middle one; the order does not matter. */
+    CHECK(tsl_choose_offset(&edge[0][0], 3, off) == TESSEL_OK && off[0] == 0 &&
+          off[1] == -4097 && off[2] == 4097);
 
-    /* tsl_format_coord reads back to the same float, for offsets as the
-     * builder chooses them. */
-    size_t fails = 0;
-    char buf[64];
-    for (int i = 0; i < 200000; i++) {
-        double offset = 0;
-        float f;
-        if (i % 2) {
-            offset = floor((rnd() - 0.5) * 2e7) - 1.0;
-            f = (float)(1.0 + rnd() * pow(10.0, (double)(i % 6)));
-        } else {
-            f = (float)((rnd() - 0.5) * 8190.0 * pow(10.0, -(double)(i % 9)));
+    /* The bulk decides, not the extremes: 10^6 points of UTM-like data
+     * with 1% strays at the origin, at -1e5 and at 1e15. The offset lies
+     * inside the bulk and is what the documented rule gives. */
+    size_t n = 1000000;
+    double *xyz = malloc(n * 3 * sizeof *xyz);
+    static const double base[3] = {500000.0, 5400000.0, 200.0}, strays[3] = {0, -1e5, 1e15};
+    for (size_t i = 0; i < n; i++) {
+        for (int k = 0; k < 3; k++)
+            xyz[3 * i + k] = base[k] + rnd() * 1000.0;
+        if (rnd_u64() % 100 == 0) {
+            double stray = strays[rnd_u64() % 3];
+            for (int k = 0; k < 3; k++)
+                xyz[3 * i + k] = stray;
         }
-        int n = tsl_format_coord(buf, offset, f);
-        const char *p = buf;
-        double v;
-        if (n <= 0 || n >= 32 || !tsl_scan_double(&p, buf + n, &v) || p != buf + n ||
-            (float)(v - offset) != f)
-            fails++;
     }
-    CHECK_MSG(fails == 0, "%zu coordinates did not read back", fails);
+    CHECK(tsl_choose_offset(xyz, n, off) == TESSEL_OK);
+    for (int k = 0; k < 2; k++) {
+        CHECK_MSG(off[k] >= base[k] && off[k] <= base[k] + 1000.0 &&
+                      off[k] == rule_offset(xyz, n, k),
+                  "axis %d: offset %.17g", k, off[k]);
+    }
+    CHECK(off[2] == 0); /* z: within 4096 */
+    /* Few points: the lower median of all of them. */
+    for (size_t m = 1; m <= 9; m++) {
+        CHECK(tsl_choose_offset(xyz, m, off) == TESSEL_OK);
+        for (int k = 0; k < 3; k++) {
+            /* floor(median) == off[k], or within [-4096, 4096] for 0 */
+            double lo = off[k] != 0 ? off[k] : -4096, hi = off[k] != 0 ? off[k] : 4096;
+            size_t below = 0, upto = 0;
+            for (size_t i = 0; i < m; i++) {
+                below += floor(xyz[3 * i + k]) < lo;
+                upto += floor(xyz[3 * i + k]) <= hi;
+            }
+            CHECK_MSG(below <= (m - 1) / 2 && upto > (m - 1) / 2,
+                      "%zu points, axis %d: offset %.17g", m, k, off[k]);
+        }
+    }
+    free(xyz);
+
+    char buf[64];
     tsl_format_coord(buf, 0, 0.1f);
     CHECK(strcmp(buf, "0.1") == 0);
     tsl_format_coord(buf, 499999, 1.25f);
     CHECK(strcmp(buf, "500000.25") == 0);
+    tsl_format_coord(buf, 500000, -0.75f);
+    CHECK(strcmp(buf, "499999.25") == 0);
     tsl_format_coord(buf, 0, NAN);
     CHECK(strcmp(buf, "nan") == 0);
     /* A locale with a decimal comma changes nothing (when installed). */
@@ -343,10 +500,14 @@ static void test_builder(void)
     tsl_builder_free(&b);
 
     /* Growth over many points; attributes declared late are zero-filled;
-     * xyz stored as float(world - offset). */
+     * xyz stored as float(world - offset), the offset by the rule. */
     tsl_builder_init(&b, NULL);
+    double *world = malloc(100000 * 3 * sizeof *world);
     for (int i = 0; i < 100000; i++) {
-        double p[3] = {6378137.0 + i * 0.01, -1000.0 + i * 0.001, i * 0.5};
+        double *p = world + 3 * i;
+        p[0] = 6378137.0 + i * 0.01;
+        p[1] = -1000.0 + i * 0.001;
+        p[2] = i * 0.5;
         uint8_t rgb[3] = {1, 2, 3};
         if (i == 50)
             CHECK(tsl_builder_attributes(&b, 0, 1) == TESSEL_OK);
@@ -354,70 +515,158 @@ static void test_builder(void)
     }
     CHECK(tsl_builder_finish_cloud(&b, &c) == TESSEL_OK);
     CHECK(c.count == 100000 && c.rgb && c.rgb[0] == 0 && c.rgb[3 * 60] == 1);
-    CHECK(c.offset[0] == 6378136.0 && c.offset[1] == 0.0 && c.offset[2] == -1.0);
+    /* x and z: the sample's median, mid-range; y stays within 4096 */
+    CHECK(c.offset[0] == rule_offset(world, 100000, 0) && c.offset[0] > 6378137.0 + 400 &&
+          c.offset[0] < 6378137.0 + 600);
+    CHECK(c.offset[1] == 0.0);
+    CHECK(c.offset[2] == rule_offset(world, 100000, 2) && c.offset[2] > 20000 &&
+          c.offset[2] < 30000);
     bool exact = true;
-    for (int i = 0; i < 100000 && exact; i++) {
-        double p[3] = {6378137.0 + i * 0.01, -1000.0 + i * 0.001, i * 0.5};
+    for (int i = 0; i < 100000 && exact; i++)
         for (int k = 0; k < 3; k++)
-            exact = exact && c.xyz[3 * i + k] == (float)(p[k] - c.offset[k]);
-    }
+            exact = exact && c.xyz[3 * i + k] == (float)(world[3 * i + k] - c.offset[k]);
     CHECK(exact);
+    free(world);
     tessel_cloud_free(&c);
     tsl_builder_free(&b);
 
     /* Never rounded up across an integer: the offset survives. */
     tsl_builder_init(&b, NULL);
-    double edge[3] = {700000.99999997, 10, 10}; /* rounds to 2.0f locally */
+    double edge[3] = {700000.99999999, 10, 10}; /* 1.0f to nearest */
     CHECK(tsl_builder_point(&b, edge, NULL, NULL) == TESSEL_OK);
     CHECK(tsl_builder_finish_cloud(&b, &c) == TESSEL_OK);
-    CHECK_MSG(c.offset[0] == 699999.0 && c.xyz[0] < 2.0f && c.xyz[0] > 1.99f, "%.17g %.9g", c.offset[0], (double)c.xyz[0]);
+    CHECK_MSG(c.offset[0] == 700000.0 && c.xyz[0] == nextafterf(1.0f, 0.0f), "%.17g %.9g",
+              c.offset[0], (double)c.xyz[0]);
     tessel_cloud_free(&c);
     tsl_builder_free(&b);
 }
 
 /* ---- exact round trips of georeferenced clouds ---- */
 
+/* Values a stray point takes: a scanner's origin, far negative, the 1e15
+ * readers keep, tiny and denormal numbers, just off an integer. */
+static double stray_value(double bulk)
+{
+    static const double v[] = {0.0,     -1e5,   1e5,        -1e15,  1e15, -1e-20,
+                               1e-300,  -5e-324, -0.0,      0.5,    -1.0 - 1e-12};
+    size_t k = (size_t)(rnd_u64() % (sizeof v / sizeof v[0] + 3));
+    if (k < sizeof v / sizeof v[0])
+        return v[k];
+    if (k == sizeof v / sizeof v[0])
+        return -bulk + rnd();  /* the mirror of the bulk */
+    return (rnd() - 0.5) * pow(10.0, (double)(rnd_u64() % 16)); /* anywhere */
+}
+
+/* Writes a cloud in every format that stores points, reads it back, writes
+ * and reads again: offsets and floats must be identical bit for bit. */
+static void round_trip_all_formats(const tessel_cloud *c0, const char *what)
+{
+    static const struct {
+        const char *name;
+        int ascii;
+    } files[] = {{"geo.ply", 0}, {"geo.ply", 1}, {"geo.xyz", 0},
+                 {"geo.csv", 0}, {"geo.obj", 0}, {"geo.off", 0}};
+    char path[512];
+    for (size_t f = 0; f < sizeof files / sizeof files[0]; f++) {
+        tessel_write_params wp = tessel_write_params_default();
+        wp.ascii = files[f].ascii;
+        path_in(path, sizeof path, files[f].name);
+        const tessel_cloud *src = c0;
+        tessel_cloud back[2];
+        for (int pass = 0; pass < 2; pass++) {
+            tessel_diag d;
+            CHECK(tessel_cloud_write(src, path, &wp, &d) == TESSEL_OK);
+            tessel_status st = tessel_cloud_read(&back[pass], path, NULL, &d);
+            CHECK_MSG(st == TESSEL_OK, "%s %s: %s", what, files[f].name, d.message);
+            if (st != TESSEL_OK)
+                break;
+            const tessel_cloud *r = &back[pass];
+            CHECK_MSG(r->count == c0->count &&
+                          memcmp(r->offset, c0->offset, sizeof c0->offset) == 0 &&
+                          memcmp(r->xyz, c0->xyz, c0->count * 12) == 0,
+                      "%s, %s%s, pass %d: not exact (offset %.17g %.17g %.17g, was %.17g "
+                      "%.17g %.17g; %zu points, was %zu)",
+                      what, files[f].name, files[f].ascii ? " ascii" : "", pass,
+                      r->offset[0], r->offset[1], r->offset[2], c0->offset[0],
+                      c0->offset[1], c0->offset[2], r->count, c0->count);
+            src = r;
+            if (pass == 1) {
+                tessel_cloud_free(&back[0]);
+                tessel_cloud_free(&back[1]);
+            } else if (st != TESSEL_OK) {
+                break;
+            }
+        }
+        unlink(path);
+    }
+}
+
 static void test_georeferenced(void)
 {
-    char path[512];
-    static const double base[3][3] = {
+    static const double base[5][3] = {
         {500000.0, 5400000.0, 200.0},            /* UTM */
         {4200000.0, -700000.0, 4700000.0},       /* ECEF */
         {-5000.25, 4095.75, -4096.0},            /* around the threshold */
+        {-3.0, 0.0, 1.0},                        /* ordinary data */
+        {999999999990000.0, -999999999990000.0, 123456789.0}, /* at the limit */
     };
-    for (int set = 0; set < 3; set++) {
-        tsl_builder b;
-        tsl_builder_init(&b, NULL);
-        for (int i = 0; i < 20000; i++) {
-            double p[3];
-            for (int k = 0; k < 3; k++)
-                p[k] = base[set][k] + rnd() * (set == 2 ? 1.5 : 2000.0);
-            if (i < 3)
-                p[i] = base[set][i]; /* exactly on the integer */
-            CHECK(tsl_builder_point(&b, p, NULL, NULL) == TESSEL_OK);
+    const size_t bulk = 20000;
+    double *world = malloc((bulk + 64) * 3 * sizeof *world);
+    bool *is_stray = malloc(bulk + 64);
+    for (int set = 0; set < 5; set++) {
+        for (int strays = 0; strays < 2; strays++) {
+            /* The bulk, with points exactly on the integer; then, in the
+             * second pass, 1-64 stray points at random places in the order,
+             * a scanner's origin among them. */
+            double extent = set == 2 ? 1.5 : 2000.0;
+            size_t n = bulk, ns = strays ? 1 + (size_t)(rnd_u64() % 64) : 0;
+            for (size_t i = 0; i < bulk; i++)
+                for (int k = 0; k < 3; k++)
+                    world[3 * i + k] = base[set][k] + (i < 3 && k == (int)i ? 0 : rnd() * extent);
+            memset(is_stray, 0, bulk + 64);
+            for (size_t s = 0; s < ns; s++) {
+                size_t at = (size_t)(rnd_u64() % (n + 1));
+                memmove(world + 3 * at + 3, world + 3 * at, (n - at) * 3 * sizeof *world);
+                memmove(is_stray + at + 1, is_stray + at, n - at);
+                for (int k = 0; k < 3; k++)
+                    world[3 * at + k] = s == 0 ? 0.0 : stray_value(base[set][k]);
+                is_stray[at] = true;
+                n++;
+            }
+            tsl_builder b;
+            tsl_builder_init(&b, NULL);
+            for (size_t i = 0; i < n; i++)
+                CHECK(tsl_builder_point(&b, world + 3 * i, NULL, NULL) == TESSEL_OK);
+            tessel_cloud c0;
+            CHECK(tsl_builder_finish_cloud(&b, &c0) == TESSEL_OK);
+            CHECK(c0.count == n);
+            /* Precision kept whatever the strays: the offset lies in the
+             * bulk's integer range (or is 0 with the bulk near 4096), so
+             * every bulk coordinate is stored within 2^-11 m (half a mm:
+             * one float ulp at 4096, as without strays). Before, a stray at
+             * 0 moved UTM local coordinates out to 5e5-5e6: 30-500 mm. */
+            double worst = 0;
+            bool inside = true;
+            for (int k = 0; k < 3; k++) {
+                double lo = floor(base[set][k]), hi = floor(base[set][k] + extent);
+                inside = inside && (c0.offset[k] == 0 ? fabs(lo) <= 4096 || fabs(hi) <= 4096
+                                                      : c0.offset[k] >= lo && c0.offset[k] <= hi);
+            }
+            for (size_t i = 0; i < n && c0.count == n; i++)
+                for (int k = 0; k < 3 && !is_stray[i]; k++)
+                    worst = fmax(worst, fabs(c0.offset[k] + (double)c0.xyz[3 * i + k] -
+                                             world[3 * i + k]));
+            char what[64];
+            snprintf(what, sizeof what, "set %d with %zu strays", set, ns);
+            CHECK_MSG(inside && worst <= 1.0 / 2048,
+                      "%s: offset %.17g %.17g %.17g, worst error %.3g", what, c0.offset[0],
+                      c0.offset[1], c0.offset[2], worst);
+            round_trip_all_formats(&c0, what);
+            tessel_cloud_free(&c0);
         }
-        tessel_cloud c0;
-        CHECK(tsl_builder_finish_cloud(&b, &c0) == TESSEL_OK);
-        /* Precision kept: local coordinates resolve < 0.25 mm over 2 km. */
-        CHECK(fabs(c0.offset[0] - floor(base[set][0]) + 1.0) < 1e-9);
-        for (int ascii = 0; ascii < 2; ascii++) {
-            tessel_write_params wp = tessel_write_params_default();
-            wp.ascii = ascii;
-            path_in(path, sizeof path, "geo.ply");
-            CHECK(tessel_cloud_write(&c0, path, &wp, NULL) == TESSEL_OK);
-            tessel_cloud c1;
-            tessel_diag d;
-            CHECK(tessel_cloud_read(&c1, path, NULL, &d) == TESSEL_OK);
-            CHECK_MSG(c1.count == c0.count &&
-                          memcmp(c1.offset, c0.offset, sizeof c0.offset) == 0 &&
-                          memcmp(c1.xyz, c0.xyz, c0.count * 12) == 0,
-                      "set %d ascii %d: not exact (offset %.17g %.17g %.17g)", set, ascii,
-                      c1.offset[0], c1.offset[1], c1.offset[2]);
-            tessel_cloud_free(&c1);
-        }
-        tessel_cloud_free(&c0);
     }
-    unlink(path);
+    free(world);
+    free(is_stray);
 }
 
 /* ---- atomic writes and read errors ---- */
@@ -758,6 +1007,7 @@ int main(void)
         return 1;
     }
     test_scan();
+    test_local_coord();
     test_offsets();
     test_builder();
     test_georeferenced();

@@ -6,9 +6,11 @@
  *  - organized clouds (width*height set by the parser) get a grid that maps
  *    every cell to its kept point or TESSEL_NONE;
  *  - the per-axis double offset is chosen by tsl_choose_offset from the
- *    bounding box of the finite points, and xyz is stored as
- *    float(world - offset), rounded so that a round trip through a writer
- *    gives back the very same floats and offset (see local_coord).
+ *    median of an even sample of the finite points (so a few stray points
+ *    far from the bulk cannot push the bulk's local coordinates out to where
+ *    floats are coarse), and xyz is stored as tsl_local_coord(world,
+ *    offset), rounded so that a round trip through a writer gives back the
+ *    very same floats and offset.
  * Storage grows geometrically; the double array is converted to floats in
  * place, so finishing needs no second copy of the points. */
 #include "io_internal.h"
@@ -18,9 +20,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Coordinates inside [-4096, 4097) keep offset 0: floats resolve ~0.5 mm
- * there, and ordinary data stays untouched. */
+/* A median in [-4096, 4097) keeps offset 0: floats resolve ~0.5 mm up to
+ * 4096, and ordinary data stays untouched. */
 #define OFFSET_LIMIT 4096.0
+/* Points the median is taken over: index-strided, so choosing the offset
+ * costs the same on 10^7 points as on 10^4. */
+#define OFFSET_SAMPLE 8192
 
 void tsl_builder_init(tsl_builder *b, const tessel_read_params *params)
 {
@@ -192,28 +197,33 @@ tessel_status tsl_builder_polygon(tsl_builder *b, const uint32_t *idx, size_t n)
     return TESSEL_OK;
 }
 
-double tsl_choose_offset(double lo, double hi)
+static int cmp_double(const void *pa, const void *pb)
 {
-    if (!(lo <= hi) || !isfinite(lo) || !isfinite(hi))
-        return 0.0;
-    if (lo >= -OFFSET_LIMIT && hi < OFFSET_LIMIT + 1.0)
-        return 0.0;
-    /* One below floor(lo): every local coordinate is >= 1, where floats
-     * are fine enough that offset + f is exact in double; so the integer
-     * part of the minimum, and with it the offset, survives a round trip. */
-    return floor(lo) - 1.0;
+    double a = *(const double *)pa, b = *(const double *)pb;
+    return (a > b) - (a < b);
 }
 
-/* float(world - offset), rounded to nearest but never up across an
- * integer: the integer parts of the bounding box (all tsl_choose_offset
- * looks at) are then the same after a round trip through a writer. */
-static float local_coord(double world, double offset)
+tessel_status tsl_choose_offset(const double *xyz, size_t count, double offset[3])
 {
-    double d = world - offset;
-    float f = (float)d;
-    if ((double)f > d && floor((double)f) > floor(d))
-        f = nextafterf(f, -INFINITY);
-    return f;
+    offset[0] = offset[1] = offset[2] = 0.0;
+    if (count == 0)
+        return TESSEL_OK;
+    size_t m = count < OFFSET_SAMPLE ? count : OFFSET_SAMPLE;
+    double *v = tsl_alloc_array(m, sizeof(double));
+    if (!v)
+        return TESSEL_ERR_NOMEM;
+    for (int a = 0; a < 3; a++) {
+        for (size_t j = 0; j < m; j++)
+            v[j] = xyz[3 * (size_t)((uint64_t)j * count / m) + (size_t)a];
+        /* The lower median: an actual sample value, so its floor is one of
+         * the sampled points' floors (what makes the rule round-trip). */
+        qsort(v, m, sizeof *v, cmp_double);
+        double c = floor(v[(m - 1) / 2]);
+        if (c < -OFFSET_LIMIT || c > OFFSET_LIMIT)
+            offset[a] = c;
+    }
+    free(v);
+    return TESSEL_OK;
 }
 
 /* Coordinates beyond this magnitude are treated like NaN: no real survey is
@@ -230,12 +240,11 @@ static bool point_finite(const double *p)
 
 /* Drops non-finite points (compacting all arrays), fills remap (old index
  * -> new or TESSEL_NONE) when given, chooses the offset and converts xyz to
- * floats in place (b->xyz then holds count*3 floats). */
-static void compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
+ * floats in place (b->xyz then holds count*3 floats). On failure (no memory
+ * for the offset's sample) the points are compacted but still doubles. */
+static tessel_status compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
                                     size_t *dropped)
 {
-    double lo[3] = {INFINITY, INFINITY, INFINITY};
-    double hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     size_t kept = 0;
     for (size_t i = 0; i < b->count; i++) {
         const double *p = b->xyz + 3 * i;
@@ -243,12 +252,6 @@ static void compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
             if (remap)
                 remap[i] = TESSEL_NONE;
             continue;
-        }
-        for (int a = 0; a < 3; a++) {
-            if (p[a] < lo[a])
-                lo[a] = p[a];
-            if (p[a] > hi[a])
-                hi[a] = p[a];
         }
         if (remap)
             remap[i] = (uint32_t)kept;
@@ -262,8 +265,10 @@ static void compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
         kept++;
     }
     *dropped = b->count - kept;
-    for (int a = 0; a < 3; a++)
-        offset[a] = kept ? tsl_choose_offset(lo[a], hi[a]) : 0.0;
+    b->count = kept;
+    tessel_status st = tsl_choose_offset(b->xyz, kept, offset);
+    if (st != TESSEL_OK)
+        return st;
     /* In place: float j lands at byte 4j, below double j's byte 8j, which
      * has been read already. memcpy keeps it free of aliasing trouble. */
     unsigned char *mem = (unsigned char *)b->xyz;
@@ -272,11 +277,11 @@ static void compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
             size_t j = 3 * i + (size_t)a;
             double w;
             memcpy(&w, mem + 8 * j, sizeof w);
-            float f = local_coord(w, offset[a]);
+            float f = tsl_local_coord(w, offset[a]);
             memcpy(mem + 4 * j, &f, sizeof f);
         }
     }
-    b->count = kept;
+    return TESSEL_OK;
 }
 
 /* Shrinks the arrays to count points; failures to shrink are harmless. */
@@ -300,7 +305,11 @@ tessel_status tsl_builder_finish_cloud(tsl_builder *b, tessel_cloud *cloud)
             return TESSEL_ERR_NOMEM;
     }
     size_t dropped = 0;
-    compact_points(b, grid, cloud->offset, &dropped);
+    tessel_status st = compact_points(b, grid, cloud->offset, &dropped);
+    if (st != TESSEL_OK) {
+        free(grid);
+        return st;
+    }
     size_t n = b->count;
     shrink((void **)&b->xyz, n * 3 * sizeof(float));
     cloud->xyz = (float *)(void *)b->xyz;
@@ -347,7 +356,11 @@ tessel_status tsl_builder_finish_mesh(tsl_builder *b, tessel_mesh *mesh)
             return TESSEL_ERR_NOMEM;
     }
     size_t dropped = 0;
-    compact_points(b, remap, mesh->offset, &dropped);
+    tessel_status st = compact_points(b, remap, mesh->offset, &dropped);
+    if (st != TESSEL_OK) {
+        free(remap);
+        return st;
+    }
     size_t tris = b->tri_count;
     if (remap) {
         size_t kept = 0;

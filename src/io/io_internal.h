@@ -56,13 +56,56 @@ tessel_status tsl_builder_finish_cloud(tsl_builder *b, tessel_cloud *cloud);
 tessel_status tsl_builder_finish_mesh(tsl_builder *b, tessel_mesh *mesh);
 void tsl_builder_free(tsl_builder *b);
 
-/* Chooses the offset for world coordinates with bounding box [lo, hi] per
- * axis: 0 when -4096 <= lo and hi < 4097 (floats keep ~0.5 mm there),
- * floor(lo) - 1 otherwise (local coordinates >= 1). Together with the
- * builder's rounding (never up across an integer) this is a fixed point:
- * writing offset + xyz as doubles and reading back gives the same floats
- * and offset (docs/formats.md). */
-double tsl_choose_offset(double lo, double hi);
+/* Chooses the per-axis offset for count finite points (xyz: count*3
+ * doubles, world coordinates): with c = floor of the lower median of an
+ * index-strided sample of at most 8192 points (the points j*count/m, j < m),
+ * the offset is 0 when -4096 <= c <= 4096, c otherwise. The median follows
+ * the bulk, not the extremes: stray points (a scanner's origin under UTM
+ * data) cannot push the bulk's local coordinates out to where floats are
+ * coarse, and it minimises the mean |local coordinate|. The rule looks only
+ * at the floor of one sampled point, whose local coordinate lies in [0, 1)
+ * or in [-4096, 4097); tsl_local_coord keeps that floor, and is monotone,
+ * so writing offset + xyz and reading back gives the same offset and floats
+ * (docs/formats.md). TESSEL_ERR_NOMEM when the sample cannot be allocated;
+ * offset is then all 0. */
+tessel_status tsl_choose_offset(const double *xyz, size_t count, double offset[3]);
+
+/* The stored float for a world coordinate and an integer offset
+ * (|world| <= 1e15, |offset| <= 1e15): float(t), t = world - offset taken
+ * exactly (d + e, Knuth's TwoSum), rounded to nearest (0 as +0) except
+ *  - |t| < 2^24: never up across an integer (the float below is taken), so
+ *    floor(offset + f) == floor(world);
+ *  - |t| >= 2^24 (floats are integers there): toward zero, so offset + f
+ *    lies between offset and world and stays within the 1e15 readers keep.
+ * f is nondecreasing in world, offset + f is exact in double, and
+ * tsl_local_coord(offset + f, offset) == f: a written and re-read
+ * coordinate comes back as the same float. Shared by the builder and the
+ * text formatter, which must round alike. */
+static inline float tsl_local_coord(double world, double offset)
+{
+    double d = world - offset;
+    if (d == 0.0)
+        return 0.0f; /* never -0.0f: offset + -0.0f reads back as +0.0f */
+    double bb = d - world;
+    double e = (world - (d - bb)) + (-offset - bb); /* t == d + e exactly */
+    float f = (float)d;
+    double fd = (double)f;
+    /* No double lies strictly between t and d, so comparing f with t
+     * reduces to comparing with d and, on a tie, the sign of e. */
+    bool above = fd > d || (fd == d && e < 0);
+    bool below = fd < d || (fd == d && e > 0);
+    if (fabs(d) < 16777216.0 || (d == 16777216.0 && e < 0) || (d == -16777216.0 && e > 0)) {
+        /* floor(t): an integer can lie between t and d only when d is it */
+        double ft = floor(d);
+        if (ft == d && e < 0)
+            ft -= 1.0;
+        if (above && floor(fd) > ft)
+            f = nextafterf(f, -INFINITY);
+    } else if (d > 0 ? above : below) {
+        f = nextafterf(f, 0.0f);
+    }
+    return f;
+}
 
 /* Per-format parsers. data/size is the whole file; name is for diagnostics.
  * want_faces: 0 skips face data quickly (cloud reads). */
@@ -160,9 +203,11 @@ tessel_status tsl_ply_write_cloud(FILE *fp, const tessel_cloud *cloud,
                                   const tessel_write_params *params);
 
 /* Formats a world coordinate (offset + f) so that reading it back as a
- * double and applying tsl_choose_offset gives the same float and offset:
- * "%.9g" of the float when offset is 0, "%.17g" of the double sum else.
- * Returns the length written to buf (size >= 32). */
+ * double gives the same floor (all tsl_choose_offset looks at) and, through
+ * tsl_local_coord, the same float: the shortest of "%.7g".."%.9g" of the
+ * float when offset is 0, of "%.Nf" of the double sum else, that does; the
+ * exact "%.17g" when none does. Returns the length written to buf
+ * (size >= 32). */
 int tsl_format_coord(char *buf, double offset, float f);
 
 #endif /* TESSEL_IO_INTERNAL_H */

@@ -253,17 +253,6 @@ bool tsl_scan_i64(const char **p, const char *end, int64_t *out)
 
 /* ---- formatting ---- */
 
-/* Same rounding as the builder (builder.c, local_coord): nearest, never up
- * across an integer. */
-static float local_coord(double world, double offset)
-{
-    double d = world - offset;
-    float f = (float)d;
-    if ((double)f > d && floor((double)f) > floor(d))
-        f = nextafterf(f, -INFINITY);
-    return f;
-}
-
 /* printf honours LC_NUMERIC; put back a '.' if a locale changed it. */
 static int fix_decimal_point(char *buf, int len)
 {
@@ -289,7 +278,7 @@ static bool reads_back(const char *buf, int len, double offset, float f)
     double v;
     if (!tsl_scan_double(&p, buf + len, &v) || p != buf + len)
         return false;
-    return floor(v) == floor(offset + (double)f) && local_coord(v, offset) == f;
+    return floor(v) == floor(offset + (double)f) && tsl_local_coord(v, offset) == f;
 }
 
 int tsl_format_coord(char *buf, double offset, float f)
@@ -307,7 +296,7 @@ int tsl_format_coord(char *buf, double offset, float f)
         }
         return fix_decimal_point(buf, snprintf(buf, 32, "%.17g", (double)f));
     }
-    double w = offset + (double)f; /* exact for offsets from tsl_choose_offset */
+    double w = offset + (double)f; /* exact for floats from tsl_local_coord */
     if (fabs(w) < 1e15) {
         /* Enough decimals to land within a quarter ulp of f. */
         double ulp = (double)nextafterf(fabsf(f), INFINITY) - (double)fabsf(f);
