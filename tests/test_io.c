@@ -252,7 +252,9 @@ static double tricky_world(double offset, int kind)
     double r = rnd() - 0.5, w;
     switch (kind % 10) {
     case 0: w = offset + r * pow(2.0, (double)(rnd_u64() % 80) - 40.0); break;
-    case 1: w = offset + floor(r * 64) + (rnd() < 0.5 ? -1 : 1) * pow(2.0, -(double)(rnd_u64() % 70)); break;
+    case 1: /* just off an integer */
+        w = offset + floor(r * 64) + (rnd() < 0.5 ? -1 : 1) * pow(2.0, -(double)(rnd_u64() % 70));
+        break;
     case 2: w = r * pow(10.0, -(double)(rnd_u64() % 320)); break; /* tiny, denormal */
     case 3: w = (rnd() < 0.5 ? -1e15 : 1e15) * (1.0 - rnd() * 1e-9); break;
     case 4: w = r * 2e15; break;
@@ -269,9 +271,9 @@ static double tricky_world(double offset, int kind)
 
 static void test_local_coord(void)
 {
-    /* Offsets as the rule gives them (0, or an integer median beyond 4096)
-     * and worlds anywhere a reader keeps: strays put local coordinates far
-     * below 1, negative, in (-1, 1) and up to 2e15. */
+    /* Integer offsets of every size (the rule gives 0 or a median beyond
+     * 4096) and worlds anywhere a reader keeps: strays put local
+     * coordinates far below 1, negative, in (-1, 1) and up to 2e15. */
     static const double offsets[] = {0,      4097,     -4097,   500000,   -700000,
                                      5400000, 6378137, -6378137, 123456789, -999999999999999.0,
                                      999999999999999.0, 562949953421311.0};
@@ -305,7 +307,8 @@ static void test_local_coord(void)
     CHECK(tsl_local_coord(-1e-20, 5000) == nextafterf(-5000.0f, -INFINITY)); /* t inexact */
     CHECK(floor(5000.0 + (double)tsl_local_coord(-1e-20, 5000)) == -1.0);
     CHECK(tsl_local_coord(-1e-300, 0) < 0.0f); /* not -0.0: floor -1 kept */
-    CHECK(tsl_local_coord(-1e15, 1e15) >= -2e15f && 1e15 + (double)tsl_local_coord(-1e15, 1e15) >= -1e15);
+    CHECK(tsl_local_coord(-1e15, 1e15) >= -2e15f &&
+          1e15 + (double)tsl_local_coord(-1e15, 1e15) >= -1e15);
     CHECK(1e15 + (double)tsl_local_coord(-999999999999999.875, 1e15) >= -1e15);
 }
 

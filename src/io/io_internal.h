@@ -86,22 +86,24 @@ static inline float tsl_local_coord(double world, double offset)
     double d = world - offset;
     if (d == 0.0)
         return 0.0f; /* never -0.0f: offset + -0.0f reads back as +0.0f */
-    double bb = d - world;
-    double e = (world - (d - bb)) + (-offset - bb); /* t == d + e exactly */
     float f = (float)d;
     double fd = (double)f;
-    /* No double lies strictly between t and d, so comparing f with t
-     * reduces to comparing with d and, on a tie, the sign of e. */
+    /* No double lies strictly between t and d, so comparing f with t is
+     * comparing with d, and on a tie looking at the sign of e. */
+    double e = 0.0;
+    if (fd == d) {
+        double bb = d - world;
+        e = (world - (d - bb)) + (-offset - bb);
+        if (e == 0.0)
+            return f; /* t is this float */
+    }
     bool above = fd > d || (fd == d && e < 0);
-    bool below = fd < d || (fd == d && e > 0);
     if (fabs(d) < 16777216.0 || (d == 16777216.0 && e < 0) || (d == -16777216.0 && e > 0)) {
-        /* floor(t): an integer can lie between t and d only when d is it */
-        double ft = floor(d);
-        if (ft == d && e < 0)
-            ft -= 1.0;
-        if (above && floor(fd) > ft)
+        /* Every integer here is a float, so f > t crosses an integer
+         * exactly when f is one: then take the float below. */
+        if (above && fd == (double)(int32_t)fd)
             f = nextafterf(f, -INFINITY);
-    } else if (d > 0 ? above : below) {
+    } else if (d > 0 ? above : fd < d || (fd == d && e > 0)) {
         f = nextafterf(f, 0.0f);
     }
     return f;
