@@ -112,8 +112,9 @@ typedef struct tessel_callbacks {
 /* A point cloud. World coordinates of point i are offset + xyz[3i..3i+2]:
  * float positions in a local frame, a double offset so georeferenced data
  * (UTM, ECEF) keep their precision. Readers choose the offset (see
- * docs/formats.md): 0 for ordinary data, an integer near the minimum corner
- * when coordinates exceed 4096 in magnitude. */
+ * docs/formats.md): per axis, the integer part of the points' median when
+ * that exceeds 4096 in magnitude, else 0, so a few stray points far from
+ * the bulk cannot make the bulk's floats coarse. */
 typedef struct tessel_cloud {
     size_t count;        /* number of points */
     float *xyz;          /* count*3 floats, local coordinates */
