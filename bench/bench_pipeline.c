@@ -6,6 +6,7 @@
  *      shared .pd.n05 scans have about 1), 10^4 .. 10^7 points (the
  *      largest given by --max); wall seconds of each stage, wall and CPU
  *      seconds of the whole pipeline, input points per (wall) second;
+ *      --tile N: the front's tile_points (0: one front);
  *   2. with --data DIR: every NAME.pd.n05.ply and NAME.pd.ply in DIR, with
  *      the result's quality against NAME.gt.ply (F-score at 1% of the
  *      diagonal, Chamfer distance, boundary and non-manifold edges,
@@ -13,7 +14,7 @@
  *      --out DIR writes the meshes.
  *
  * usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K]
- *                       [--noise X] [--data DIR] [--out DIR] [--skip-sizes] */
+ *                       [--tile N] [--noise X] [--data DIR] [--out DIR] [--skip-sizes] */
 #include "tessel.h"
 #include "bench_data.h"
 
@@ -156,6 +157,8 @@ int main(int argc, char **argv)
             p.refine.rounds = (uint32_t)atoi(argv[++i]);
         else if (!strcmp(argv[i], "--refine-k") && i + 1 < argc)
             p.refine.k = (uint32_t)atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--tile") && i + 1 < argc)
+            p.front.tile_points = (size_t)strtod(argv[++i], NULL);
         else if (!strcmp(argv[i], "--data") && i + 1 < argc)
             dir = argv[++i];
         else if (!strcmp(argv[i], "--out") && i + 1 < argc)
@@ -168,7 +171,7 @@ int main(int argc, char **argv)
         else {
             fprintf(stderr,
                     "usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K] "
-                    "[--noise X] [--data DIR] [--out DIR] [--skip-sizes]\n");
+                    "[--tile N] [--noise X] [--data DIR] [--out DIR] [--skip-sizes]\n");
             return 1;
         }
     }

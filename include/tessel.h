@@ -1090,10 +1090,18 @@ typedef struct tessel_front_params {
                                 (right for nearly closed surfaces, arbitrary
                                 for flat ones). 0: as grown (still
                                 consistent within each component). */
-    int threads;             /* for the neighbour search; 0 = OpenMP default
-                                (honours OMP_NUM_THREADS). The front itself is
-                                sequential; the result does not depend on the
-                                thread count. */
+    size_t tile_points;      /* more points than this are cut into tiles of
+                                at most this many (recursive median cuts),
+                                whose fronts run in parallel; a front over
+                                all points then closes the seams, starting
+                                from the tiles' triangles less those within
+                                2 mean spacings of a cut. The result depends
+                                on this, not on the thread count. Default
+                                65536 (0: one front; else >= 256) */
+    int threads;             /* for the neighbour search and the tiles; 0 =
+                                OpenMP default (honours OMP_NUM_THREADS).
+                                The result does not depend on the thread
+                                count. */
 } tessel_front_params;
 TESSEL_API tessel_front_params tessel_front_params_default(void);
 

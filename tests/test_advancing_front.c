@@ -385,6 +385,75 @@ static void test_lines(void)
     tessel_cloud_free(&c);
 }
 
+/* Tiles (tile_points): the same surfaces cut into tiles, fronts in
+ * parallel, seams closed by a front over all points. The seams must not
+ * show: closed surfaces stay closed with their genus, the disc keeps one
+ * border loop; the result is the same for one and two threads, and
+ * differs from the single front's (the tiles were used); closed ones face
+ * outward. */
+static bool same_mesh(const tessel_mesh *a, const tessel_mesh *b)
+{
+    return a->triangle_count == b->triangle_count &&
+           memcmp(a->triangles, b->triangles, 3 * a->triangle_count * sizeof *a->triangles) == 0;
+}
+
+static void check_tiled(const char *name, const tessel_cloud *c, size_t tile_points, long euler,
+                        size_t loops)
+{
+    tessel_front_params p = tessel_front_params_default();
+    p.tile_points = 0;
+    tessel_mesh whole, one, two;
+    CHECK(tessel_advancing_front(c, &p, NULL, &whole, NULL) == TESSEL_OK);
+    p.tile_points = tile_points;
+    p.threads = 1;
+    tessel_front_stats st;
+    CHECK(tessel_advancing_front(c, &p, NULL, &one, &st) == TESSEL_OK);
+    p.threads = 2;
+    CHECK(tessel_advancing_front(c, &p, NULL, &two, NULL) == TESSEL_OK);
+    CHECK_MSG(same_mesh(&one, &two), "%s: tiles depend on the thread count", name);
+    CHECK_MSG(!same_mesh(&one, &whole), "%s: the tiles were not used", name);
+    topo tp = count_topology(&one);
+    tessel_mesh_report rep = check_mesh(&one, c);
+    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+    CHECK_MSG(tp.euler == euler && rep.components == 1 && rep.boundary_loops == loops,
+              "%s in tiles of %zu: euler %ld, %zu components, %zu border loops (%zu edges)", name,
+              tile_points, tp.euler, rep.components, rep.boundary_loops, tp.boundary_edges);
+    size_t used_whole = count_topology(&whole).used_vertices;
+    CHECK_MSG(tp.used_vertices > used_whole * 99 / 100, "%s: %zu points used (one front: %zu)",
+              name, tp.used_vertices, used_whole);
+    CHECK(loops > 0 || signed_volume(&one) > 0.0);
+    printf("%s in tiles of %zu: %zu triangles (one front: %zu), %zu seeds, %zu bridges\n", name,
+           tile_points, one.triangle_count, whole.triangle_count, st.seeds, st.bridges);
+    tessel_mesh_free(&whole);
+    tessel_mesh_free(&one);
+    tessel_mesh_free(&two);
+}
+
+static void test_tiles(void)
+{
+    tessel_cloud s = noisy_sphere(20000, 0.2, 5);
+    check_tiled("noisy sphere", &s, 2500, 2, 0);
+    tessel_cloud_free(&s);
+    tessel_cloud t = torus(60, 9);
+    check_tiled("torus", &t, 3000, 0, 0);
+    tessel_cloud_free(&t);
+    uint64_t seed = 3;
+    size_t n = sheet(NULL, 0, 0.02, 0.0, 1, &seed);
+    tessel_cloud d = make_cloud(n);
+    seed = 3;
+    sheet(d.xyz, n, 0.02, 0.0, 1, &seed);
+    check_tiled("disc", &d, 2000, 1, 1);
+    tessel_cloud_free(&d);
+    /* Tiles of fewer than 256 points are refused. */
+    tessel_cloud c = sphere(1000);
+    tessel_front_params p = tessel_front_params_default();
+    p.tile_points = 100;
+    tessel_mesh m;
+    CHECK(tessel_advancing_front(&c, &p, NULL, &m, NULL) == TESSEL_ERR_INVALID_ARG);
+    tessel_cloud_free(&c);
+}
+
 static void test_duplicates_and_errors(void)
 {
     /* Every point twice: the copies stay unused, the surface is the same. */
@@ -484,6 +553,7 @@ int main(void)
     test_two_sheets();
     test_noisy_sphere();
     test_lines();
+    test_tiles();
     test_duplicates_and_errors();
     test_triangle_test();
     return TEST_SUMMARY();

@@ -37,6 +37,10 @@ static const char smooth_recon_help_fmt[] =
     "                      normals (default %g)\n"
     "  --max-hole X        close holes up to X spacings of the representatives\n"
     "                      wide (area over half perimeter; default %g; 0: none)\n"
+    "  --tile-points N     triangulate more representatives than N in tiles of\n"
+    "                      at most N, in parallel, then close the seams; the\n"
+    "                      result depends on N, not on --threads (default %zu;\n"
+    "                      0: one front; else at least 256)\n"
     "  --eps X             refine edges farther than X h from the cloud\n"
     "                      (default %g)\n"
     "  --min-edge X        do not split edges shorter than X h (default %g)\n"
@@ -52,7 +56,7 @@ static void format_help(char *buf, size_t size)
              d.smooth.sigma_rho, d.smooth.sigma_w, d.simplify.cluster.sigma_max,
              d.simplify.cluster.n_min, d.front.max_edge_ratio, d.front.theta_deg,
              d.front.theta_step_deg, d.front.max_angle_deg, d.front.normal_angle_deg, d.front.max_hole_radius,
-             d.refine.min_offset, d.refine.min_edge_length);
+             d.front.tile_points, d.refine.min_offset, d.refine.min_edge_length);
 }
 
 typedef struct smooth_recon_opts {
@@ -67,7 +71,7 @@ static bool int_option(const char *a, const char *v, smooth_recon_opts *o)
         const char *name;
         long lo, hi;
     } ints[] = {{"--refine", 0, 20}, {"--passes", 1, 100}, {"--k", 3, 256},
-                {"--n-min", 1, 1000000}};
+                {"--n-min", 1, 1000000}, {"--tile-points", 0, 1L << 30}};
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) {
         if (strcmp(a, ints[k].name) != 0)
             continue;
@@ -84,8 +88,15 @@ static bool int_option(const char *a, const char *v, smooth_recon_opts *o)
         case 2:
             o->p.smooth.k = (uint32_t)x;
             break;
-        default:
+        case 3:
             o->p.simplify.cluster.n_min = (uint32_t)x;
+            break;
+        default:
+            if (x > 0 && x < 256) {
+                cli_error("%s: %s is out of range (0, or 256 and more)", a, v);
+                return false;
+            }
+            o->p.front.tile_points = (size_t)x;
             break;
         }
         return true;
@@ -114,7 +125,7 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
         o->p.refine.flip = 0;
         return 1;
     }
-    static const char *const ints[] = {"--refine", "--passes", "--k", "--n-min"};
+    static const char *const ints[] = {"--refine", "--passes", "--k", "--n-min", "--tile-points"};
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++)
         if (strcmp(a, ints[k]) == 0) {
             if (!(v = cli_option_value(argc, argv, i)))
