@@ -2211,12 +2211,11 @@ static tessel_status af_alloc_mesh(af *s, double cell)
  * only, so the result does not depend on the thread count. */
 #define TILE_BAND 0.5
 
-/* A tile's components take the orientation of the tiles placed before it
- * where they face them across a cut: triangles within this many mean
- * spacings of the band vote with their nearest placed triangle. */
+/* The tiles' components are oriented against each other by their
+ * triangles within this many mean spacings beyond the band of a cut ... */
 #define TILE_VOTE_REACH 4.0
-/* ... and their nearest triangle across the cut counts within this many
- * mean spacings beyond the two bands. */
+/* ... each with its nearest triangle of another component within this
+ * many mean spacings beyond the two bands (see orient_tiles). */
 #define TILE_PAIR_REACH 4.0
 /* Share of the progress bar given to the tiles (the front over all points,
  * which starts with their triangles, reports the rest). */
@@ -2396,11 +2395,10 @@ static tessel_status tile_front(const af *g, const tessel_front_params *p, const
     return st ? st : run_fronts(t, cb);
 }
 
-/* Removes triangles (tri[3 i ..], tile[i], *count of them) at every vertex
+/* Removes triangles (tri[3 i ..], *count of them) at every vertex
  * with more than one fan, until none is left; only vertices flagged in
  * touched (cleared on return) can have one. */
-static tessel_status single_fans(size_t n, uint32_t *tri, uint32_t *tile, size_t *count,
-                                 uint8_t *touched)
+static tessel_status single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched)
 {
     size_t nt = *count;
     uint32_t *start = tsl_calloc_array(n + 1, sizeof *start);
@@ -2473,7 +2471,7 @@ static tessel_status single_fans(size_t n, uint32_t *tri, uint32_t *tile, size_t
     for (size_t t = 0; t < nt; t++)
         if (alive[t]) {
             memmove(tri + 3 * kept, tri + 3 * t, 3 * sizeof *tri);
-            tile[kept++] = tile[t];
+            kept++;
         }
     *count = kept;
     free(start);
@@ -2728,8 +2726,8 @@ static tessel_status border_of_mesh(af *s)
 }
 
 /* Places the tiles' triangles (tiles[0 .. nt), points ids[range]) in s,
- * less the band along the cuts, each tile oriented against the ones
- * before it. */
+ * less the band along the cuts and the components orient_tiles drops,
+ * the rest oriented against each other. */
 static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range, size_t nt,
                                  const uint32_t *ids, const float *dcut, double mean_nn,
                                  size_t small)
@@ -2739,14 +2737,13 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
         total += tiles[k].nt - tiles[k].deleted;
     double band = TILE_BAND * mean_nn;
     uint32_t *tri = tsl_alloc_array(3 * total + 1, sizeof *tri);
-    uint32_t *tile = tsl_alloc_array(total + 1, sizeof *tile);
     uint8_t *touched = tsl_calloc_array(s->n, sizeof *touched);
     uint32_t *parent = tsl_alloc_array(s->n, sizeof *parent);
     uint32_t *cid = tsl_alloc_array(s->n, sizeof *cid);
     uint32_t *comp = tsl_alloc_array(total + 1, sizeof *comp);
     uint8_t *drop = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!tri || !tile || !touched || !parent || !cid || !comp)
+    if (!tri || !touched || !parent || !cid || !comp)
         goto done;
     size_t count = 0;
     for (size_t k = 0; k < nt; k++) {
@@ -2766,10 +2763,10 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
                 continue;
             }
             memcpy(tri + 3 * count, v, sizeof v);
-            tile[count++] = (uint32_t)k;
+            count++;
         }
     }
-    if ((st = single_fans(s->n, tri, tile, &count, touched)))
+    if ((st = single_fans(s->n, tri, &count, touched)))
         goto done;
     /* Components (edge-connected: every vertex has a single fan). */
     for (size_t i = 0; i < s->n; i++)
@@ -2807,7 +2804,6 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
     st = border_of_mesh(s);
 done:
     free(tri);
-    free(tile);
     free(touched);
     free(parent);
     free(cid);
