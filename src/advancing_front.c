@@ -50,6 +50,9 @@
  * minimum-area triangulation first. */
 #define MAX_HOLE_EDGES 4096
 #define DP_HOLE_EDGES 128
+/* Up to this many edges, a hole whose optimal triangulation meets the mesh
+ * gets one built from triangles the mesh allows (a check per diagonal). */
+#define CHECKED_HOLE_EDGES 48
 /* d_x, the local spacing of (iii): mean distance to this many nearest
  * distinct neighbours. */
 #define SPACING_NEIGHBOURS 4
@@ -86,6 +89,7 @@ typedef struct af_edge {
     uint32_t tri;        /* the triangle it belongs to */
     uint8_t state;
     uint8_t retries;
+    uint16_t unfilled;   /* length of the loop a hole filling left it on */
     uint32_t mark;       /* hole-filling pass that last visited it */
 } af_edge;
 
@@ -482,6 +486,7 @@ static tessel_status new_edge(af *s, uint32_t from, uint32_t to, uint32_t tri, u
     e->tri = tri;
     e->state = EDGE_ACTIVE;
     e->retries = 0;
+    e->unfilled = 0;
     e->mark = 0;
     *id = id_;
     return push_edge(s, id_);
@@ -1736,10 +1741,11 @@ static inline double bend(const double a[3], const double b[3]) { return 1.0 - t
  * kept only when no diagonal exists already and every triangle is valid
  * (exact intersection tests against the mesh and each other, folds up to
  * LAST_FOLD_DEG). *done tells whether it closed. */
-static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bool *done)
+static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bool checked,
+                                  bool *done)
 {
     *done = false;
-    if (n < 3 || n > DP_HOLE_EDGES)
+    if (n < 3 || n > (checked ? CHECKED_HOLE_EDGES : DP_HOLE_EDGES))
         return TESSEL_OK;
     size_t nn = n * n;
     uint32_t *v = tsl_alloc_array(n, sizeof *v);
@@ -1750,8 +1756,9 @@ static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bo
     uint32_t *split = tsl_alloc_array(nn, sizeof *split);
     af_tri *tris = tsl_alloc_array(n, sizeof *tris);
     uint32_t *stack = tsl_alloc_array(2 * n, sizeof *stack);
+    uint8_t *rejected = tsl_alloc_array(n, sizeof *rejected);
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!v || !side || !worst || !area || !normal || !split || !tris || !stack)
+    if (!v || !side || !worst || !area || !normal || !split || !tris || !stack || !rejected)
         goto done;
     st = TESSEL_OK;
     uint32_t e = id;
@@ -1776,12 +1783,18 @@ static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bo
             double best_w = INFINITY, best_a = INFINITY, best_n[3] = {0.0, 0.0, 1.0};
             uint32_t arg = 0;
             bool diagonal = !(i == 0 && k == n - 1);
-            if (!diagonal || !edge_exists(s, v[i], v[k])) {
+            memset(rejected, 0, n);
+            while (!diagonal || !edge_exists(s, v[i], v[k])) {
                 double pi[3], pk[3];
                 point(s, v[i], pi);
                 point(s, v[k], pk);
+                best_w = best_a = INFINITY;
                 for (size_t m = i + 1; m < k; m++) {
                     size_t im = i * n + m, mk = m * n + k;
+                    /* Both parts must be closable (their area is infinite
+                     * when not). */
+                    if (rejected[m] || !isfinite(area[im]) || !isfinite(area[mk]))
+                        continue;
                     double w = by_area ? 0.0 : dmax(worst[im], worst[mk]);
                     if (!(w <= best_w))
                         continue;
@@ -1810,6 +1823,20 @@ static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bo
                             best_n[c] = tn[c];
                     }
                 }
+                if (!checked || !isfinite(best_w))
+                    break;
+                /* The best triangle on (i, k) that the mesh allows. */
+                af_tri x;
+                bool ok = make_tri(s, v[k], v[arg], v[i], &x);
+                if (ok) {
+                    x.cos_fold = s->cos_last_fold;
+                    x.exact_only = true;
+                    if ((st = check_triangle(s, &x, NULL, &ok)))
+                        goto done;
+                }
+                if (ok)
+                    break;
+                rejected[arg] = 1;
             }
             worst[ik] = best_w;
             area[ik] = best_a;
@@ -1875,13 +1902,14 @@ done:
     free(split);
     free(tris);
     free(stack);
+    free(rejected);
     return st;
 }
 
 /* Closes the hole through edge id (len edges) by clipping ears, the
  * sharpest corner first, each passing the closing checks (tiny holes: any
  * valid ear); stops at the first state with no valid ear. */
-static tessel_status fill_hole(af *s, uint32_t id, size_t len)
+static tessel_status fill_hole(af *s, uint32_t id, size_t len, uint32_t *left)
 {
     if (len > s->scratch_cap) {
         size_t c1 = s->scratch_cap, c2 = s->scratch_cap;
@@ -1944,15 +1972,19 @@ static tessel_status fill_hole(af *s, uint32_t id, size_t len)
             if ((st = commit(s, eid, &plan)))
                 return st;
             s->stats.hole_triangles++;
-            if (kind == PLAN_HOLE)
+            if (kind == PLAN_HOLE) {
+                *left = NONE;
                 return TESSEL_OK;
+            }
             /* The new edge a->t took the place of eid and its successor. */
             id = s->e[next].prev;
             len--;
             done = true;
         }
-        if (!done)
+        if (!done) {
+            *left = id;
             return TESSEL_OK;
+        }
     }
 }
 
@@ -2016,15 +2048,20 @@ static tessel_status erode(af *s, uint32_t id, bool *done)
 }
 
 /* Closes the hole through edge id (len edges): the two optimal
- * triangulations, and when both fail (the borders around it cross, as
- * noise can make fronts do) once more after removing the triangles along
- * the hole, then ear clipping. */
-static tessel_status close_hole(af *s, uint32_t id, size_t len)
+ * triangulations, then the least-area one from triangles the mesh allows,
+ * and when all fail (the borders around it cross, as noise can make fronts
+ * do) once more after removing the triangles along the hole, then ear
+ * clipping. *left is an edge of the loop that remains open, or NONE. */
+static tessel_status close_hole(af *s, uint32_t id, size_t len, uint32_t *left)
 {
+    *left = NONE;
     bool done;
-    tessel_status st = fill_hole_dp(s, id, len, true, &done);
+    tessel_status st = fill_hole_dp(s, id, len, true, false, &done);
     if (!st && !done)
-        st = fill_hole_dp(s, id, len, false, &done);
+        st = fill_hole_dp(s, id, len, false, false, &done);
+    /* A triangle's hole has only the triangulation just tried. */
+    if (!st && !done && len > 3)
+        st = fill_hole_dp(s, id, len, true, true, &done);
     if (st || done)
         return st;
     /* Erosion once per hole: a loop through a vertex that was on an eroded
@@ -2072,14 +2109,45 @@ static tessel_status close_hole(af *s, uint32_t id, size_t len)
         len = 1;
         for (e = s->e[id].next; e != id; e = s->e[e].next)
             len++;
-        if ((st = fill_hole_dp(s, id, len, true, &done)))
+        if ((st = fill_hole_dp(s, id, len, true, false, &done)))
             return st;
-        if (!done && (st = fill_hole_dp(s, id, len, false, &done)))
+        if (!done && (st = fill_hole_dp(s, id, len, false, false, &done)))
+            return st;
+        if (!done && len > 3 && (st = fill_hole_dp(s, id, len, true, true, &done)))
             return st;
         if (done)
             return TESSEL_OK;
     }
-    return fill_hole(s, id, len);
+    return fill_hole(s, id, len, left);
+}
+
+/* Whether the loop through edge id (len edges) is one a filling left open
+ * before. fill_holes runs each time a front stops; since then the fronts
+ * have only added triangles around such a loop (erosion aside), which
+ * cannot make a failed closing valid, so it is not tried again. A loop that
+ * changed has a new edge, or old edges with another length. */
+static bool unchanged_hole(const af *s, uint32_t id, size_t len)
+{
+    uint32_t e = id;
+    do {
+        if (s->e[e].unfilled != len)
+            return false;
+        e = s->e[e].next;
+    } while (e != id);
+    return true;
+}
+
+static void mark_unfilled(af *s, uint32_t id)
+{
+    size_t len = 1;
+    for (uint32_t e = s->e[id].next; e != id; e = s->e[e].next)
+        len++;
+    uint16_t mark = len < UINT16_MAX ? (uint16_t)len : 0;
+    uint32_t e = id;
+    do {
+        s->e[e].unfilled = mark;
+        e = s->e[e].next;
+    } while (e != id);
 }
 
 static tessel_status fill_holes(af *s)
@@ -2092,11 +2160,14 @@ static tessel_status fill_holes(af *s)
         if (s->e[i].state == EDGE_CLOSED || s->e[i].mark == s->pass)
             continue;
         size_t len;
-        if (!small_hole(s, (uint32_t)i, &len))
+        if (!small_hole(s, (uint32_t)i, &len) || unchanged_hole(s, (uint32_t)i, len))
             continue;
-        tessel_status st = close_hole(s, (uint32_t)i, len);
+        uint32_t left;
+        tessel_status st = close_hole(s, (uint32_t)i, len, &left);
         if (st)
             return st;
+        if (left != NONE)
+            mark_unfilled(s, left);
     }
     return TESSEL_OK;
 }
