@@ -2996,6 +2996,40 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
                                         const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                         tessel_front_stats *stats)
 {
+    return tsl_advancing_front_from(points, lines, params, NULL, 0, callbacks, mesh, stats);
+}
+
+/* Places the starting triangles in s (see tsl_advancing_front_from). */
+static tessel_status place_start(af *s, const uint32_t *start, size_t count)
+{
+    uint32_t *tri = tsl_alloc_array(3 * count + 1, sizeof *tri);
+    uint8_t *touched = tsl_calloc_array(s->n, sizeof *touched);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!tri || !touched)
+        goto done;
+    memcpy(tri, start, 3 * count * sizeof *tri);
+    for (size_t c = 0; c < 3 * count; c++)
+        touched[tri[c]] = 1;
+    if ((st = single_fans(s->n, tri, &count, touched)))
+        goto done;
+    for (size_t t = 0; t < count; t++) {
+        uint32_t id;
+        if ((st = add_triangle(s, tri[3 * t], tri[3 * t + 1], tri[3 * t + 2], &id)))
+            goto done;
+    }
+    st = border_of_mesh(s);
+done:
+    free(tri);
+    free(touched);
+    return st;
+}
+
+tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *lines,
+                                       const tessel_front_params *params,
+                                       const uint32_t *start, size_t start_count,
+                                       const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                       tessel_front_stats *stats)
+{
     if (!mesh)
         return TESSEL_ERR_INVALID_ARG;
     memset(mesh, 0, sizeof *mesh);
@@ -3014,6 +3048,11 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
         return TESSEL_ERR_LIMIT;
     for (size_t i = 0; i < 3 * points->count; i++)
         if (!isfinite(points->xyz[i]))
+            return TESSEL_ERR_INVALID_ARG;
+    if (start_count && !start)
+        return TESSEL_ERR_INVALID_ARG;
+    for (size_t i = 0; i < 3 * start_count; i++)
+        if (start[i] >= points->count)
             return TESSEL_ERR_INVALID_ARG;
 
     af s;
@@ -3040,7 +3079,9 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
     mean_nn = counted ? mean_nn / (double)counted : 1.0;
     if ((st = af_alloc_mesh(&s, 3.0 * mean_nn)))
         goto fail;
-    if (p.tile_points > 0 && s.n > p.tile_points &&
+    if (start_count && (st = place_start(&s, start, start_count)))
+        goto fail;
+    if (!start_count && p.tile_points > 0 && s.n > p.tile_points &&
         (st = run_tiles(&s, &p, mean_nn, callbacks)))
         goto fail;
     if ((st = run_fronts(&s, callbacks)))

@@ -162,6 +162,17 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
                                         const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                         tessel_front_stats *stats);
 
+/* tsl_advancing_front_lines from a starting mesh: start_count triangles
+ * (3 ids into points each, consistently oriented, no two crossing, as a
+ * front's output less some triangles). Triangles at vertices the removal
+ * left with two fans are dropped; the fronts start from the borders of the
+ * rest and cover the points they do not use. */
+tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *lines,
+                                       const tessel_front_params *params,
+                                       const uint32_t *start, size_t start_count,
+                                       const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                       tessel_front_stats *stats);
+
 /* ---- the projector's own index (src/smooth.c), shared by the stages
  * that search the same cloud ---- */
 

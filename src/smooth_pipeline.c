@@ -13,12 +13,13 @@
  * closed components are turned outward by their volume. When the front
  * leaves small holes (where two parts of the surface come close, such as
  * the elephant's trunk curled against its face, the representatives are
- * too sparse for it to pass between them), it runs once more with extra
+ * too sparse for it to pass between them), it runs again with extra
  * representatives around them: points of the smoothed cloud, projected by
- * Q, 0.4 to 0.7 mean edges apart; the triangulation with the fewest
- * border edges is kept. Points no triangle uses are dropped before
- * refinement, and the result's normals are those of the vertices' stars.
- * Each stage is timed, as in the paper's Table 1. */
+ * Q, 0.4 to 0.7 mean edges apart; first anew, then from the mesh less its
+ * triangles around the holes left (so the rest stays as it was); a result
+ * is kept when it has fewer border edges. Points no triangle uses are
+ * dropped before refinement, and the result's normals are those of the
+ * vertices' stars. Each stage is timed, as in the paper's Table 1. */
 #include "internal.h"
 
 #include <stdlib.h>
@@ -33,12 +34,19 @@
 #define AUTO_DIAMETER_PER_NOISE 11.0
 #define AUTO_DIAMETER_MIN 3.0
 #define AUTO_DIAMETER_MAX 8.0
-/* Spacings of the extra representatives around holes, as fractions of the
- * holes' mean border edge, in the order tried; the next is tried only while
- * each improves on the last (a front on 10^5 representatives costs about
- * 0.2 s). Measured on the noisy elephant (border edges after the front: 36
- * without extras): 0.7 -> 10, 0.5 -> 26, 0.6 -> 37, 0.4 -> 68. */
-#define DENSE_FRACTIONS {0.7, 0.5, 0.6, 0.4}
+/* Attempts at the holes the front leaves: the spacing of the extra
+ * representatives around a hole, as a fraction of its mean border edge,
+ * and how far beyond its ball (in mean border edges) the front's triangles
+ * are cleared for the front to go again (INFINITY: all of them, the front
+ * runs anew). The first phase runs the whole front again while each
+ * attempt improves on the last (a front on 10^5 representatives costs
+ * about 0.2 s); the second clears around the holes left, until two
+ * attempts in a row fail. Measured on the data sets of the project (noisy
+ * bunny, elephant, man; the elephant with the front's seeds taken from
+ * eight starting points). */
+#define GLOBAL_REPAIRS {{0.7, INFINITY}, {0.5, INFINITY}, {0.6, INFINITY}, {0.4, INFINITY}}
+#define LOCAL_REPAIRS                                                                  \
+    {{0.7, 1.0}, {0.7, 2.0}, {0.5, 4.0}, {0.6, 2.0}, {0.7, 4.0}, {0.4, 4.0}, {0.5, 8.0}}
 
 tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
 {
@@ -137,7 +145,7 @@ static tessel_status star_normals(tessel_mesh *m)
 /* Border components (edge-connected border edges) of at most this many
  * edges get extra representatives; longer ones are borders of the sampled
  * surface. */
-#define HOLE_MAX_EDGES 64
+#define HOLE_MAX_EDGES 128
 
 static int cmp_u64(const void *a, const void *b)
 {
@@ -154,16 +162,33 @@ static uint32_t uf_root(uint32_t *parent, uint32_t x)
     return x;
 }
 
+/* Sets clear[] for the representatives of index ix within radius of q. */
+static tessel_status mark_clear(const tessel_index *ix, const float q[3], double radius,
+                                uint8_t *clear)
+{
+    size_t found = tessel_index_radius(ix, q, (float)radius, NULL, NULL, 0);
+    uint32_t *ids = tsl_alloc_array(found + 1, sizeof *ids);
+    if (!ids)
+        return TESSEL_ERR_NOMEM;
+    found = tessel_index_radius(ix, q, (float)radius, ids, NULL, found);
+    for (size_t i = 0; i < found; i++)
+        clear[ids[i]] = 1;
+    free(ids);
+    return TESSEL_OK;
+}
+
 /* Adds to reps points of the smoothed cloud around the small holes of mesh
  * (its border components of at most HOLE_MAX_EDGES edges), projected by Q
  * (which also gives their normal lines), each at least fraction times the
  * hole's mean border edge from every representative and from the points
  * added before it. reps->normals (oriented like the nearest
  * representative's) or else *lines grow with them. *added tells how
- * many. */
+ * many; clear[v] (when clear is not NULL) is set for the representatives
+ * within `clearing` mean border edges of the ball around each hole. */
 static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smoothed,
                                    const tessel_projector *projector, double fraction,
-                                   tessel_cloud *reps, float **lines, size_t *added)
+                                   double clearing, tessel_cloud *reps, float **lines,
+                                   uint8_t *clear, size_t *added)
 {
     *added = 0;
     size_t nt = m->triangle_count, nv = m->vertex_count;
@@ -249,6 +274,8 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
             }
         }
         found = tessel_index_radius(cix, q, (float)radius, near, NULL, found);
+        if (clear && (st = mark_clear(rix, q, reach[r] + clearing * mean, clear)))
+            break;
         double gap2 = (fraction * mean) * (fraction * mean);
         size_t first = n_extra;
         for (size_t i = 0; i < found && !st; i++) {
@@ -322,6 +349,66 @@ done:
     free(extra);
     free(extra_n);
     free(near);
+    return st;
+}
+
+/* The small holes of the front's mesh (over reps) again, for each
+ * (fraction, clearing) of repairs[0 .. count) in turn until none is left
+ * or max_failed attempts in a row fail: extra representatives around them
+ * and the front from the mesh less its triangles there. An attempt that
+ * leaves fewer border edges replaces *mesh and keeps its extra
+ * representatives in reps; the next starts from it. */
+static tessel_status repair_holes(const double (*repairs)[2], size_t count, int max_failed,
+                                  tessel_mesh *mesh, const tessel_cloud *smoothed,
+                                  const tessel_projector *projector,
+                                  const tessel_front_params *front,
+                                  const tessel_callbacks *callbacks, tessel_cloud *reps,
+                                  float **lines, tessel_front_stats *stats)
+{
+    uint8_t *clear = NULL;
+    uint32_t *start = NULL;
+    tessel_status st = TESSEL_OK;
+    int failed = 0;
+    for (size_t f = 0; f < count && stats->border_edges && !st && failed < max_failed; f++) {
+        size_t base = reps->count, nt = mesh->triangle_count, added = 0;
+        free(clear);
+        free(start);
+        clear = tsl_calloc_array(base, sizeof *clear);
+        start = tsl_alloc_array(3 * nt + 1, sizeof *start);
+        if (!clear || !start) {
+            st = TESSEL_ERR_NOMEM;
+            break;
+        }
+        bool all = isinf(repairs[f][1]);
+        if ((st = densify_holes(mesh, smoothed, projector, repairs[f][0], repairs[f][1], reps,
+                                lines, all ? NULL : clear, &added)) ||
+            !added)
+            continue;
+        size_t kept = 0;
+        for (size_t t = 0; t < nt && !all; t++) {
+            const uint32_t *v = mesh->triangles + 3 * t;
+            if (clear[v[0]] || clear[v[1]] || clear[v[2]])
+                continue;
+            memcpy(start + 3 * kept++, v, 3 * sizeof *v);
+        }
+        tessel_mesh other;
+        tessel_front_stats fs;
+        if ((st = tsl_advancing_front_from(reps, *lines, front, start, kept, callbacks, &other,
+                                           &fs)))
+            break;
+        if (fs.border_edges < stats->border_edges) {
+            tessel_mesh_free(mesh);
+            *mesh = other;
+            *stats = fs;
+            failed = 0;
+        } else {
+            tessel_mesh_free(&other);
+            reps->count = base;
+            failed++;
+        }
+    }
+    free(clear);
+    free(start);
     return st;
 }
 
@@ -427,41 +514,15 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
 
     t = now();
     st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, mesh, &s.front);
-    /* Holes left: once more with extra representatives around them (at
-     * the spacings of DENSE_FRACTIONS); the triangulation with the fewest
-     * border edges is kept (every one is valid). */
+    /* Holes left: the front again around them with extra representatives,
+     * the rest of the mesh kept as it is (every result is valid). */
     if (!st && s.front.border_edges > 0) {
-        static const double fractions[] = DENSE_FRACTIONS;
-        size_t base = reps.count;
-        tessel_mesh best = {0};
-        tessel_front_stats best_stats = s.front;
-        for (size_t f = 0; f < sizeof fractions / sizeof *fractions && !st; f++) {
-            size_t added = 0;
-            reps.count = base;
-            if ((st = densify_holes(mesh, &smoothed, projector, fractions[f], &reps, &lines,
-                                    &added)) ||
-                !added)
-                continue;
-            tessel_mesh other;
-            tessel_front_stats fs;
-            if ((st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, &other, &fs)))
-                break;
-            if (fs.border_edges < best_stats.border_edges) {
-                tessel_mesh_free(&best);
-                best = other;
-                best_stats = fs;
-            } else {
-                tessel_mesh_free(&other);
-                break;
-            }
-        }
-        if (!st && best.triangles) {
-            tessel_mesh_free(mesh);
-            *mesh = best;
-            s.front = best_stats;
-        } else {
-            tessel_mesh_free(&best);
-        }
+        static const double global[][2] = GLOBAL_REPAIRS, local[][2] = LOCAL_REPAIRS;
+        st = repair_holes(global, sizeof global / sizeof *global, 1, mesh, &smoothed, projector,
+                          &p.front, callbacks, &reps, &lines, &s.front);
+        if (!st && s.front.border_edges > 0)
+            st = repair_holes(local, sizeof local / sizeof *local, 2, mesh, &smoothed,
+                              projector, &p.front, callbacks, &reps, &lines, &s.front);
     }
     free(lines);
     if (st)

@@ -568,6 +568,77 @@ static void test_triangle_test(void)
     CHECK(tsl_triangle_degenerate(deg) && !tsl_triangle_degenerate(t1));
 }
 
+/* Triangle (a, b, c) as its rotation with the smallest id first (same
+ * orientation), packed for sorting. */
+typedef struct tri_key {
+    uint32_t v[3];
+} tri_key;
+
+static tri_key rotated(const uint32_t *t)
+{
+    int i = t[0] < t[1] ? (t[0] < t[2] ? 0 : 2) : (t[1] < t[2] ? 1 : 2);
+    tri_key k = {{t[i], t[(i + 1) % 3], t[(i + 2) % 3]}};
+    return k;
+}
+
+static int cmp_tri_key(const void *pa, const void *pb)
+{
+    return memcmp(pa, pb, sizeof(tri_key));
+}
+
+/* The front from a starting mesh (what the pipeline's hole repair runs):
+ * a closed noisy sphere less a cap of triangles closes again, valid, and
+ * keeps every starting triangle as it was. */
+static void test_front_from_start(void)
+{
+    tessel_cloud c = noisy_sphere(4000, 0.2, 5);
+    tessel_mesh whole, again;
+    CHECK(tessel_advancing_front(&c, NULL, NULL, &whole, NULL) == TESSEL_OK);
+    uint32_t *start = malloc(3 * whole.triangle_count * sizeof *start);
+    size_t kept = 0;
+    for (size_t t = 0; t < whole.triangle_count; t++) {
+        const uint32_t *v = whole.triangles + 3 * t;
+        bool in_cap = false;
+        for (int i = 0; i < 3; i++)
+            in_cap |= c.xyz[3 * (size_t)v[i] + 2] > 0.8f;
+        if (!in_cap)
+            memcpy(start + 3 * kept++, v, 3 * sizeof *v);
+    }
+    CHECK(kept < whole.triangle_count * 95 / 100);
+    tessel_front_stats st;
+    CHECK(tsl_advancing_front_from(&c, NULL, NULL, start, kept, NULL, &again, &st) ==
+          TESSEL_OK);
+    tessel_mesh_report rep = check_mesh(&again, &c);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+    CHECK_MSG(rep.boundary_edges == 0 && rep.components == 1 && rep.genus == 0,
+              "front from a start: %zu boundary edges, %zu components", rep.boundary_edges,
+              rep.components);
+    CHECK(signed_volume(&again) > 0.0);
+    /* Every starting triangle is in the result, oriented as it was. */
+    tri_key *have = malloc(again.triangle_count * sizeof *have);
+    for (size_t t = 0; t < again.triangle_count; t++)
+        have[t] = rotated(again.triangles + 3 * t);
+    qsort(have, again.triangle_count, sizeof *have, cmp_tri_key);
+    size_t missing = 0;
+    for (size_t t = 0; t < kept; t++) {
+        tri_key k = rotated(start + 3 * t);
+        missing += !bsearch(&k, have, again.triangle_count, sizeof *have, cmp_tri_key);
+    }
+    CHECK_MSG(missing == 0, "%zu of %zu starting triangles lost", missing, kept);
+    printf("front from %zu of %zu triangles: %zu triangles, %zu seeds\n", kept,
+           whole.triangle_count, again.triangle_count, st.seeds);
+    /* A starting triangle with an id beyond the points is refused. */
+    start[1] = (uint32_t)c.count;
+    tessel_mesh bad;
+    CHECK(tsl_advancing_front_from(&c, NULL, NULL, start, kept, NULL, &bad, NULL) ==
+          TESSEL_ERR_INVALID_ARG);
+    free(have);
+    free(start);
+    tessel_mesh_free(&again);
+    tessel_mesh_free(&whole);
+    tessel_cloud_free(&c);
+}
+
 int main(void)
 {
     test_sphere();
@@ -576,6 +647,7 @@ int main(void)
     test_two_sheets();
     test_noisy_sphere();
     test_noisy_holes();
+    test_front_from_start();
     test_lines();
     test_tiles();
     test_duplicates_and_errors();
