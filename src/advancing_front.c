@@ -2796,6 +2796,22 @@ static tessel_status border_of_mesh(af *s)
     return TESSEL_OK;
 }
 
+/* Adds tri[0 .. count) to s, less those whose component comp[t] is dropped
+ * (drop NULL: none), and makes their border edges the front. */
+static tessel_status import_mesh(af *s, const uint32_t *tri, size_t count, const uint32_t *comp,
+                                 const uint8_t *drop)
+{
+    for (size_t t = 0; t < count; t++) {
+        uint32_t id;
+        if (drop && drop[comp[t]])
+            continue;
+        tessel_status st = add_triangle(s, tri[3 * t], tri[3 * t + 1], tri[3 * t + 2], &id);
+        if (st)
+            return st;
+    }
+    return border_of_mesh(s);
+}
+
 /* Places the tiles' triangles (tiles[0 .. nt), points ids[range]) in s,
  * less the band along the cuts and the components orient_tiles drops,
  * the rest oriented against each other. */
@@ -2865,14 +2881,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
                            band + TILE_VOTE_REACH * mean_nn,
                            2.0 * band + TILE_PAIR_REACH * mean_nn, s->cell, small, drop)))
         goto done;
-    for (size_t t = 0; t < count; t++) {
-        uint32_t id;
-        if (drop[comp[t]])
-            continue;
-        if ((st = add_triangle(s, tri[3 * t], tri[3 * t + 1], tri[3 * t + 2], &id)))
-            goto done;
-    }
-    st = border_of_mesh(s);
+    st = import_mesh(s, tri, count, comp, drop);
 done:
     free(tri);
     free(touched);
@@ -3012,12 +3021,7 @@ static tessel_status place_start(af *s, const uint32_t *start, size_t count)
         touched[tri[c]] = 1;
     if ((st = single_fans(s->n, tri, &count, touched)))
         goto done;
-    for (size_t t = 0; t < count; t++) {
-        uint32_t id;
-        if ((st = add_triangle(s, tri[3 * t], tri[3 * t + 1], tri[3 * t + 2], &id)))
-            goto done;
-    }
-    st = border_of_mesh(s);
+    st = import_mesh(s, tri, count, NULL, NULL);
 done:
     free(tri);
     free(touched);
