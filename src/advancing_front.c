@@ -1388,6 +1388,13 @@ static tessel_status try_seed(af *s, uint32_t p, bool *ok)
 /* Orientation of the components                                             */
 /* ------------------------------------------------------------------------ */
 
+static void flip_triangle(uint32_t v[3])
+{
+    uint32_t tmp = v[1];
+    v[1] = v[2];
+    v[2] = tmp;
+}
+
 static uint32_t uf_find(uint32_t *parent, uint32_t x)
 {
     while (parent[x] != x) {
@@ -1480,11 +1487,8 @@ static tessel_status orient_components(af *s)
             s->stats.flipped_components++;
     for (size_t t = 0; t < s->nt; t++) {
         uint32_t *v = s->tri + 3 * t;
-        if (v[0] != NONE && score[uf_find(parent, v[0])] < 0.0) {
-            uint32_t tmp = v[1];
-            v[1] = v[2];
-            v[2] = tmp;
-        }
+        if (v[0] != NONE && score[uf_find(parent, v[0])] < 0.0)
+            flip_triangle(v);
     }
     free(parent);
     free(score);
@@ -1745,7 +1749,8 @@ static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bo
                                   bool *done)
 {
     *done = false;
-    if (n < 3 || n > (checked ? CHECKED_HOLE_EDGES : DP_HOLE_EDGES))
+    /* A triangle's hole has one triangulation: the plain run tried it. */
+    if (n < (checked ? 4u : 3u) || n > (checked ? CHECKED_HOLE_EDGES : DP_HOLE_EDGES))
         return TESSEL_OK;
     size_t nn = n * n;
     uint32_t *v = tsl_alloc_array(n, sizeof *v);
@@ -1756,7 +1761,7 @@ static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bo
     uint32_t *split = tsl_alloc_array(nn, sizeof *split);
     af_tri *tris = tsl_alloc_array(n, sizeof *tris);
     uint32_t *stack = tsl_alloc_array(2 * n, sizeof *stack);
-    uint8_t *rejected = tsl_alloc_array(n, sizeof *rejected);
+    uint8_t *rejected = tsl_calloc_array(n, sizeof *rejected);
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!v || !side || !worst || !area || !normal || !split || !tris || !stack || !rejected)
         goto done;
@@ -1783,7 +1788,8 @@ static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bo
             double best_w = INFINITY, best_a = INFINITY, best_n[3] = {0.0, 0.0, 1.0};
             uint32_t arg = 0;
             bool diagonal = !(i == 0 && k == n - 1);
-            memset(rejected, 0, n);
+            if (checked)
+                memset(rejected, 0, n);
             while (!diagonal || !edge_exists(s, v[i], v[k])) {
                 double pi[3], pk[3];
                 point(s, v[i], pi);
@@ -1867,8 +1873,10 @@ static tessel_status fill_hole_dp(af *s, uint32_t id, size_t n, bool by_area, bo
         stack[top++] = (uint32_t)k;
     }
     for (size_t a = 0; a < nt; a++) {
-        bool ok;
-        if ((st = check_triangle(s, &tris[a], NULL, &ok)))
+        /* The checked programme has checked each triangle against the mesh
+         * already; the triangles against each other are left. */
+        bool ok = true;
+        if (!checked && (st = check_triangle(s, &tris[a], NULL, &ok)))
             goto done;
         if (!ok)
             goto done;
@@ -2059,8 +2067,7 @@ static tessel_status close_hole(af *s, uint32_t id, size_t len, uint32_t *left)
     tessel_status st = fill_hole_dp(s, id, len, true, false, &done);
     if (!st && !done)
         st = fill_hole_dp(s, id, len, false, false, &done);
-    /* A triangle's hole has only the triangulation just tried. */
-    if (!st && !done && len > 3)
+    if (!st && !done)
         st = fill_hole_dp(s, id, len, true, true, &done);
     if (st || done)
         return st;
@@ -2113,7 +2120,7 @@ static tessel_status close_hole(af *s, uint32_t id, size_t len, uint32_t *left)
             return st;
         if (!done && (st = fill_hole_dp(s, id, len, false, false, &done)))
             return st;
-        if (!done && len > 3 && (st = fill_hole_dp(s, id, len, true, true, &done)))
+        if (!done && (st = fill_hole_dp(s, id, len, true, true, &done)))
             return st;
         if (done)
             return TESSEL_OK;
@@ -2749,11 +2756,8 @@ static tessel_status orient_tiles(uint32_t *tri, const uint32_t *comp, size_t co
     for (size_t t = 0; t < count; t++) {
         uint8_t f;
         parity_root(up, rel, comp[t], &f);
-        if (f) {
-            uint32_t tmp = tri[3 * t + 1];
-            tri[3 * t + 1] = tri[3 * t + 2];
-            tri[3 * t + 2] = tmp;
-        }
+        if (f)
+            flip_triangle(tri + 3 * t);
     }
     st = TESSEL_OK;
 done:
@@ -2769,8 +2773,9 @@ done:
     return st;
 }
 
-/* Makes the triangles of s (all added by the tiles) a front: every edge on
- * one triangle becomes a border edge, queued, linked along its loop. */
+/* Makes the triangles of s (a starting mesh: the tiles' or a caller's) a
+ * front: every edge on one triangle becomes a border edge, queued, linked
+ * along its loop. */
 static tessel_status border_of_mesh(af *s)
 {
     size_t first = s->ne;
