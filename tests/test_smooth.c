@@ -364,6 +364,24 @@ static void test_cube_edges(void)
     tessel_cloud_free(&clean);
 }
 
+/* Smooths `in` reversed with p and counts the points whose position is
+ * not bit for bit that of `out` (the output for `in`), reversed. */
+static size_t differ_reversed(const tessel_cloud *in, const tessel_cloud *out,
+                              const tessel_smooth_params *p)
+{
+    tessel_cloud rev, o;
+    CHECK(tessel_cloud_alloc(&rev, in->count, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < in->count; i++)
+        memcpy(rev.xyz + 3 * i, in->xyz + 3 * (in->count - 1 - i), 3 * sizeof(float));
+    CHECK(tessel_smooth(&rev, &o, p, NULL, NULL) == TESSEL_OK);
+    size_t diff = 0;
+    for (size_t i = 0; i < in->count; i++)
+        diff += memcmp(out->xyz + 3 * i, o.xyz + 3 * (in->count - 1 - i), 3 * sizeof(float)) != 0;
+    tessel_cloud_free(&o);
+    tessel_cloud_free(&rev);
+    return diff;
+}
+
 static void test_threads_and_order(void)
 {
     rng_state = 5;
@@ -389,18 +407,9 @@ static void test_threads_and_order(void)
     p.spacing = 0.03;
     tessel_cloud_free(&o1);
     CHECK(tessel_smooth(&in, &o1, &p, NULL, NULL) == TESSEL_OK);
-    tessel_cloud rev;
-    CHECK(tessel_cloud_alloc(&rev, in.count, 0, 0) == TESSEL_OK);
-    for (size_t i = 0; i < in.count; i++)
-        memcpy(rev.xyz + 3 * i, in.xyz + 3 * (in.count - 1 - i), 3 * sizeof(float));
-    CHECK(tessel_smooth(&rev, &o2, &p, NULL, NULL) == TESSEL_OK);
-    size_t diff = 0;
-    for (size_t i = 0; i < in.count; i++)
-        diff += memcmp(o1.xyz + 3 * i, o2.xyz + 3 * (in.count - 1 - i), 3 * sizeof(float)) != 0;
+    size_t diff = differ_reversed(&in, &o1, &p);
     CHECK_MSG(diff == 0, "%zu points differ after reversing the input", diff);
     tessel_cloud_free(&o1);
-    tessel_cloud_free(&o2);
-    tessel_cloud_free(&rev);
     tessel_cloud_free(&in);
 }
 
@@ -447,23 +456,15 @@ static void test_aggregate(void)
               cos_one);
     agg.count = plain.count = in.count = n + 1;
 
-    tessel_cloud o2, rev;
+    tessel_cloud o2;
     p.threads = 1;
     CHECK(tessel_smooth(&in, &o2, &p, NULL, NULL) == TESSEL_OK);
     size_t bytes = in.count * 3 * sizeof(float);
     CHECK(memcmp(o2.xyz, agg.xyz, bytes) == 0 && memcmp(o2.normals, agg.normals, bytes) == 0);
     tessel_cloud_free(&o2);
-    CHECK(tessel_cloud_alloc(&rev, in.count, 0, 0) == TESSEL_OK);
-    for (size_t i = 0; i < in.count; i++)
-        memcpy(rev.xyz + 3 * i, in.xyz + 3 * (in.count - 1 - i), 3 * sizeof(float));
     p.threads = 0;
-    CHECK(tessel_smooth(&rev, &o2, &p, NULL, NULL) == TESSEL_OK);
-    size_t diff = 0;
-    for (size_t i = 0; i < in.count; i++)
-        diff += memcmp(agg.xyz + 3 * i, o2.xyz + 3 * (in.count - 1 - i), 3 * sizeof(float)) != 0;
+    size_t diff = differ_reversed(&in, &agg, &p);
     CHECK_MSG(diff == 0, "%zu points differ after reversing the input", diff);
-    tessel_cloud_free(&o2);
-    tessel_cloud_free(&rev);
     tessel_cloud_free(&agg);
     tessel_cloud_free(&plain);
     tessel_cloud_free(&in);
