@@ -1230,6 +1230,12 @@ typedef struct tessel_smooth_recon_stats {
     size_t representatives;          /* points triangulated */
     size_t vertices, triangles;      /* in the result */
     size_t border_edges;             /* edges with one triangle */
+    size_t reoriented;               /* triangles of the representatives'
+                                        mesh turned outward: regions the
+                                        front carried inside out across a
+                                        place where two sheets touch
+                                        (src/orient.c); only for clouds
+                                        without normals or viewpoint */
     /* Wall-clock seconds per stage (as the paper's Table 1) and in all. */
     double seconds_spacing, seconds_smooth, seconds_simplify, seconds_front,
         seconds_refine, seconds_total;

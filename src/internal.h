@@ -173,6 +173,16 @@ tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *
                                        const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                        tessel_front_stats *stats);
 
+/* ---- orientation check by ray parity (src/orient.c) ----
+ * For the triangles tri[0 .. nt) over xyz (nv points): mark[t] = 1 for a
+ * triangle of a connected region whose rays say it faces into a closed
+ * surface while most of its component faces out (flip it), 2 for such a
+ * triangle on the region's rim (drop it: flipped, it would clash with its
+ * neighbours), 0 otherwise. *flipped: triangles marked 1 or 2. Results
+ * are the same for any thread count. */
+tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri, size_t nt,
+                               int threads, uint8_t *mark, size_t *flipped);
+
 /* ---- the projector's own index (src/smooth.c), shared by the stages
  * that search the same cloud ---- */
 

@@ -412,6 +412,47 @@ static tessel_status repair_holes(const double (*repairs)[2], size_t count, int 
     return st;
 }
 
+/* Regions the front meshed inside out (src/orient.c) flipped, their rims
+ * dropped, and the front again from the rest to close the seams (the
+ * caller's hole repair follows for what it leaves open). */
+static tessel_status repair_orientation(tessel_mesh *mesh, const tessel_cloud *reps,
+                                        const float *lines, const tessel_front_params *front,
+                                        const tessel_callbacks *callbacks,
+                                        tessel_front_stats *stats, size_t *turned)
+{
+    size_t nt = mesh->triangle_count, flipped = 0, kept = 0;
+    uint8_t *mark = tsl_alloc_array(nt + 1, sizeof *mark);
+    uint32_t *start = tsl_alloc_array(3 * nt + 1, sizeof *start);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!mark || !start)
+        goto done;
+    if ((st = tsl_orient_check(reps->xyz, reps->count, mesh->triangles, nt, front->threads, mark,
+                               &flipped)) ||
+        !flipped)
+        goto done;
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *v = mesh->triangles + 3 * t;
+        if (mark[t] == 2)
+            continue;
+        uint32_t *w = start + 3 * kept++;
+        w[0] = v[0];
+        w[1] = mark[t] ? v[2] : v[1];
+        w[2] = mark[t] ? v[1] : v[2];
+    }
+    tessel_mesh other;
+    tessel_front_stats fs;
+    if ((st = tsl_advancing_front_from(reps, lines, front, start, kept, callbacks, &other, &fs)))
+        goto done;
+    tessel_mesh_free(mesh);
+    *mesh = other;
+    *stats = fs;
+    *turned = flipped;
+done:
+    free(mark);
+    free(start);
+    return st;
+}
+
 tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
                                         const tessel_smooth_recon_params *params,
                                         const tessel_callbacks *callbacks, tessel_mesh *mesh,
@@ -523,6 +564,14 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
         if (!st && s.front.border_edges > 0)
             st = repair_holes(local, sizeof local / sizeof *local, 2, mesh, &smoothed,
                               projector, &p.front, callbacks, &reps, &lines, &s.front);
+    }
+    if (!st && lines)
+        st = repair_orientation(mesh, &reps, lines, &p.front, callbacks, &s.front,
+                                &s.reoriented);
+    if (!st && s.reoriented && s.front.border_edges > 0) {
+        static const double local[][2] = LOCAL_REPAIRS;
+        st = repair_holes(local, sizeof local / sizeof *local, 2, mesh, &smoothed, projector,
+                          &p.front, callbacks, &reps, &lines, &s.front);
     }
     free(lines);
     if (st)

@@ -266,14 +266,16 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                "\"cluster_diameter\": %.4g, "
                "\"representatives\": %zu, \"vertices\": %zu, \"triangles\": %zu, "
                "\"border_edges\": %zu, \"seeds\": %zu, \"bridges\": %zu, "
-               "\"hole_triangles\": %zu, \"splits\": %zu, \"flips\": %zu, "
+               "\"hole_triangles\": %zu, \"reoriented\": %zu, \"splits\": %zu, "
+               "\"flips\": %zu, "
                "\"read_seconds\": %.6f, \"spacing_seconds\": %.6f, \"smooth_seconds\": %.6f, "
                "\"simplify_seconds\": %.6f, \"front_seconds\": %.6f, "
                "\"refine_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
                "\"write_seconds\": %.6f, \"seconds\": %.6f}\n",
                n, s.spacing, s.cluster_diameter, s.representatives, s.vertices, s.triangles,
                s.border_edges,
-               s.front.seeds, s.front.bridges, s.front.hole_triangles, s.refine.splits,
+               s.front.seeds, s.front.bridges, s.front.hole_triangles, s.reoriented,
+               s.refine.splits,
                s.refine.flips, t_read, s.seconds_spacing, s.seconds_smooth,
                s.seconds_simplify, s.seconds_front, s.seconds_refine, s.seconds_total,
                t_write, seconds);
@@ -285,6 +287,11 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                 n, s.spacing, s.representatives, s.cluster_diameter, s.front.triangles,
                 s.front.seeds,
                 s.front.hole_triangles, s.front.border_edges);
+        if (s.reoriented)
+            fprintf(stderr,
+                    "tessel: %zu triangles turned outward (regions meshed inside out where "
+                    "two sheets touch)\n",
+                    s.reoriented);
         fprintf(stderr,
                 "tessel: %u refinement rounds: %zu splits, %zu flips -> %zu vertices, %zu "
                 "triangles, %zu border edges\n",

@@ -1,0 +1,405 @@
+/* Orientation check by ray parity, for meshes of closed objects (beyond
+ * Mederos, Velho & de Figueiredo 2003; used by the smooth pipeline).
+ *
+ * The advancing front carries a component's orientation from triangle to
+ * triangle (section 2.4). Where two sheets touch closer than the
+ * representatives' spacing (a hand against a thigh) it can step from one
+ * onto the other as if they were one sheet, and mesh the whole limb behind
+ * the step inside out. Locally the flipped limb is flawless; only a global
+ * test sees it. A ray from a triangle's centroid along its normal crosses a
+ * closed surface an odd number of times exactly when the normal points
+ * inward. Every triangle votes so; the votes are averaged over a few rings
+ * of neighbours (a ray through a hole or along an edge miscounts); a
+ * connected region voting inward is marked for flipping when it holds
+ * fewer than half of its component's triangles, the component's own
+ * orientation being the front's business (orient_components). The
+ * triangles along the region's edge are marked for removal: once the region
+ * is flipped they would meet their neighbours with clashing orientations,
+ * and the front fills the seam again from the mesh around it. */
+#include "internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NONE TESSEL_NONE
+/* Grid cells at most (the cell grows to stay under). */
+#define MAX_CELLS (1u << 22)
+/* Averaging rounds over edge neighbours. */
+#define SMOOTH_ROUNDS 12
+/* Smaller inward regions are left alone: too few rays to trust. */
+#define MIN_REGION 32
+
+/* A uniform grid over the mesh's box; each cell lists the triangles whose
+ * boxes meet it (CSR). */
+typedef struct ray_grid {
+    double lo[3], cell;
+    int n[3];
+    uint32_t *start, *items;
+} ray_grid;
+
+static void tri_points(const float *xyz, const uint32_t *v, double p[3][3])
+{
+    for (int i = 0; i < 3; i++)
+        tsl_load(xyz + 3 * (size_t)v[i], p[i]);
+}
+
+static int clampi(double x, int n)
+{
+    return x < 0.0 ? 0 : x >= (double)n ? n - 1 : (int)x;
+}
+
+static void cell_range(const ray_grid *g, const double p[3][3], int lo[3], int hi[3])
+{
+    for (int k = 0; k < 3; k++) {
+        double a = fmin(p[0][k], fmin(p[1][k], p[2][k]));
+        double b = fmax(p[0][k], fmax(p[1][k], p[2][k]));
+        lo[k] = clampi((a - g->lo[k]) / g->cell, g->n[k]);
+        hi[k] = clampi((b - g->lo[k]) / g->cell, g->n[k]);
+    }
+}
+
+static size_t cell_id(const ray_grid *g, int x, int y, int z)
+{
+    return ((size_t)z * (size_t)g->n[1] + (size_t)y) * (size_t)g->n[0] + (size_t)x;
+}
+
+static tessel_status grid_build(ray_grid *g, const float *xyz, size_t nv, const uint32_t *tri,
+                                size_t nt)
+{
+    double hi[3], len = 0.0;
+    for (int k = 0; k < 3; k++) {
+        g->lo[k] = INFINITY;
+        hi[k] = -INFINITY;
+    }
+    for (size_t i = 0; i < nv; i++)
+        for (int k = 0; k < 3; k++) {
+            g->lo[k] = fmin(g->lo[k], xyz[3 * i + (size_t)k]);
+            hi[k] = fmax(hi[k], xyz[3 * i + (size_t)k]);
+        }
+    for (size_t t = 0; t < nt; t++) {
+        double p[3][3], d[3];
+        tri_points(xyz, tri + 3 * t, p);
+        tsl_sub(p[1], p[0], d);
+        len += tsl_norm(d);
+    }
+    /* Two mean edges a cell: few triangles per cell, few cells per ray. */
+    double ext[3], top = 0.0;
+    for (int k = 0; k < 3; k++) {
+        ext[k] = hi[k] - g->lo[k];
+        top = fmax(top, ext[k]);
+    }
+    g->cell = 2.0 * len / (double)nt;
+    if (!(g->cell > 0.0))
+        g->cell = top > 0.0 ? top : 1.0;
+    for (;;) {
+        double cells = 1.0;
+        for (int k = 0; k < 3; k++)
+            cells *= floor(ext[k] / g->cell) + 1.0;
+        if (cells <= MAX_CELLS)
+            break;
+        g->cell *= 1.25;
+    }
+    size_t total = 1;
+    for (int k = 0; k < 3; k++) {
+        g->n[k] = (int)(ext[k] / g->cell) + 1;
+        total *= (size_t)g->n[k];
+    }
+    g->start = tsl_calloc_array(total + 1, sizeof *g->start);
+    if (!g->start)
+        return TESSEL_ERR_NOMEM;
+    size_t entries = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t t = 0; t < nt; t++) {
+            double p[3][3];
+            int a[3], b[3];
+            tri_points(xyz, tri + 3 * t, p);
+            cell_range(g, p, a, b);
+            for (int z = a[2]; z <= b[2]; z++)
+                for (int y = a[1]; y <= b[1]; y++)
+                    for (int x = a[0]; x <= b[0]; x++) {
+                        size_t c = cell_id(g, x, y, z);
+                        if (pass == 0)
+                            g->start[c + 1]++;
+                        else
+                            g->items[g->start[c]++] = (uint32_t)t;
+                    }
+        }
+        if (pass == 0) {
+            for (size_t c = 0; c < total; c++)
+                g->start[c + 1] += g->start[c];
+            entries = g->start[total];
+            if (entries > UINT32_MAX ||
+                !(g->items = tsl_alloc_array(entries ? entries : 1, sizeof *g->items)))
+                return TESSEL_ERR_NOMEM;
+        }
+    }
+    /* The fill advanced every start to the next cell's; shift back. */
+    memmove(g->start + 1, g->start, total * sizeof *g->start);
+    g->start[0] = 0;
+    return TESSEL_OK;
+}
+
+/* Parameter t > 0 where the ray o + t d meets the closed triangle p, or -1
+ * (Moeller and Trumbore). */
+static double ray_hit(const double o[3], const double d[3], const double p[3][3])
+{
+    double e1[3], e2[3], q[3], s[3], r[3];
+    tsl_sub(p[1], p[0], e1);
+    tsl_sub(p[2], p[0], e2);
+    tsl_cross(d, e2, q);
+    double det = tsl_dot(e1, q);
+    if (det == 0.0)
+        return -1.0;
+    double inv = 1.0 / det;
+    tsl_sub(o, p[0], s);
+    double u = tsl_dot(s, q) * inv;
+    if (u < 0.0 || u > 1.0)
+        return -1.0;
+    tsl_cross(s, e1, r);
+    double v = tsl_dot(d, r) * inv;
+    if (v < 0.0 || u + v > 1.0)
+        return -1.0;
+    return tsl_dot(e2, r) * inv;
+}
+
+/* Crossings of the ray from triangle t's centroid along its normal with
+ * the other triangles (3D DDA through the grid, Amanatides and Woo; a
+ * crossing counts in the cell where it lies, so once). -1 for a degenerate
+ * triangle. */
+static int crossings(const ray_grid *g, const float *xyz, const uint32_t *tri, uint32_t t)
+{
+    double p[3][3], o[3], d[3], u[3], w[3];
+    tri_points(xyz, tri + 3 * (size_t)t, p);
+    tsl_sub(p[1], p[0], u);
+    tsl_sub(p[2], p[0], w);
+    tsl_cross(u, w, d);
+    if (!tsl_normalize(d))
+        return -1;
+    for (int k = 0; k < 3; k++)
+        o[k] = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
+    int c[3], step[3];
+    double tmax[3], tdelta[3];
+    for (int k = 0; k < 3; k++) {
+        double x = (o[k] - g->lo[k]) / g->cell;
+        c[k] = clampi(x, g->n[k]);
+        if (d[k] > 0.0) {
+            step[k] = 1;
+            tdelta[k] = g->cell / d[k];
+            tmax[k] = ((double)(c[k] + 1) - x) * tdelta[k];
+        } else if (d[k] < 0.0) {
+            step[k] = -1;
+            tdelta[k] = -g->cell / d[k];
+            tmax[k] = (x - (double)c[k]) * tdelta[k];
+        } else {
+            step[k] = 0;
+            tdelta[k] = tmax[k] = INFINITY;
+        }
+    }
+    int count = 0;
+    double tin = 0.0;
+    for (;;) {
+        int k = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
+        double tout = tmax[k];
+        size_t id = cell_id(g, c[0], c[1], c[2]);
+        for (uint32_t e = g->start[id]; e < g->start[id + 1]; e++) {
+            uint32_t x = g->items[e];
+            if (x == t)
+                continue;
+            double q[3][3];
+            tri_points(xyz, tri + 3 * (size_t)x, q);
+            double h = ray_hit(o, d, q);
+            if (h > 0.0 && h >= tin && h < tout)
+                count++;
+        }
+        c[k] += step[k];
+        if (c[k] < 0 || c[k] >= g->n[k])
+            return count;
+        tin = tout;
+        tmax[k] += tdelta[k];
+    }
+}
+
+typedef struct edge_rec {
+    uint64_t key;
+    uint32_t tri;
+    uint8_t side;
+} edge_rec;
+
+static int cmp_edge(const void *pa, const void *pb)
+{
+    const edge_rec *a = pa, *b = pb;
+    if (a->key != b->key)
+        return a->key < b->key ? -1 : 1;
+    return a->tri < b->tri ? -1 : a->tri > b->tri;
+}
+
+/* nb[3 t + i]: the triangle across t's edge i, NONE on a border. */
+static tessel_status neighbours(const uint32_t *tri, size_t nt, uint32_t *nb)
+{
+    edge_rec *e = tsl_alloc_array(3 * nt + 1, sizeof *e);
+    if (!e)
+        return TESSEL_ERR_NOMEM;
+    for (size_t t = 0; t < nt; t++)
+        for (int i = 0; i < 3; i++) {
+            uint64_t a = tri[3 * t + (size_t)i], b = tri[3 * t + (size_t)(i + 1) % 3];
+            edge_rec *r = &e[3 * t + (size_t)i];
+            r->key = a < b ? a << 32 | b : b << 32 | a;
+            r->tri = (uint32_t)t;
+            r->side = (uint8_t)i;
+            nb[3 * t + (size_t)i] = NONE;
+        }
+    qsort(e, 3 * nt, sizeof *e, cmp_edge);
+    for (size_t i = 0; i + 1 < 3 * nt; i++)
+        if (e[i].key == e[i + 1].key && (i + 2 == 3 * nt || e[i + 2].key != e[i].key)) {
+            nb[3 * (size_t)e[i].tri + e[i].side] = e[i + 1].tri;
+            nb[3 * (size_t)e[i + 1].tri + e[i + 1].side] = e[i].tri;
+            i++;
+        }
+    free(e);
+    return TESSEL_OK;
+}
+
+/* Labels the connected sets of triangles t with in[t] (edge neighbours),
+ * label[t] = the set's number, NONE outside; returns the count of sets.
+ * queue: nt entries of scratch. */
+static uint32_t label_sets(const uint32_t *nb, size_t nt, const uint8_t *in, uint32_t *label,
+                           uint32_t *queue)
+{
+    uint32_t sets = 0;
+    for (size_t t = 0; t < nt; t++)
+        label[t] = NONE;
+    for (size_t t = 0; t < nt; t++) {
+        if (!in[t] || label[t] != NONE)
+            continue;
+        size_t head = 0, tail = 0;
+        queue[tail++] = (uint32_t)t;
+        label[t] = sets;
+        while (head < tail) {
+            uint32_t x = queue[head++];
+            for (int i = 0; i < 3; i++) {
+                uint32_t y = nb[3 * (size_t)x + (size_t)i];
+                if (y != NONE && in[y] && label[y] == NONE) {
+                    label[y] = sets;
+                    queue[tail++] = y;
+                }
+            }
+        }
+        sets++;
+    }
+    return sets;
+}
+
+tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri, size_t nt,
+                               int threads, uint8_t *mark, size_t *flipped)
+{
+    *flipped = 0;
+    memset(mark, 0, nt);
+    if (nt < 2 * MIN_REGION)
+        return TESSEL_OK;
+    if (nt > UINT32_MAX)
+        return TESSEL_ERR_LIMIT;
+    ray_grid g = {0};
+    uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb);
+    uint32_t *label = tsl_alloc_array(nt, sizeof *label);
+    uint32_t *comp = tsl_alloc_array(nt, sizeof *comp);
+    uint32_t *queue = tsl_alloc_array(nt, sizeof *queue);
+    float *vote = tsl_alloc_array(nt, sizeof *vote);
+    float *next = tsl_alloc_array(nt, sizeof *next);
+    uint8_t *in = tsl_alloc_array(nt, sizeof *in);
+    size_t *size = NULL, *csize = NULL;
+    double *sum = NULL;
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!nb || !label || !comp || !queue || !vote || !next || !in)
+        goto done;
+    if ((st = neighbours(tri, nt, nb)) || (st = grid_build(&g, xyz, nv, tri, nt)))
+        goto done;
+
+    ptrdiff_t n = (ptrdiff_t)nt;
+#pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
+    for (ptrdiff_t t = 0; t < n; t++) {
+        int c = crossings(&g, xyz, tri, (uint32_t)t);
+        vote[t] = c < 0 ? 0.0f : c % 2 ? -1.0f : 1.0f;
+    }
+    /* Raw votes are kept in next's place until the regions are judged. */
+    float *raw = next;
+    next = tsl_alloc_array(nt, sizeof *next);
+    if (!next) {
+        next = raw;
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    memcpy(raw, vote, nt * sizeof *raw);
+    for (int r = 0; r < SMOOTH_ROUNDS; r++) {
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+        for (ptrdiff_t t = 0; t < n; t++) {
+            float s = vote[t];
+            int k = 1;
+            for (int i = 0; i < 3; i++) {
+                uint32_t y = nb[3 * (size_t)t + (size_t)i];
+                if (y != NONE) {
+                    s += vote[y];
+                    k++;
+                }
+            }
+            next[t] = s / (float)k;
+        }
+        float *tmp = vote;
+        vote = next;
+        next = tmp;
+    }
+
+    for (size_t t = 0; t < nt; t++)
+        in[t] = 1;
+    uint32_t ncomp = label_sets(nb, nt, in, comp, queue);
+    for (size_t t = 0; t < nt; t++)
+        in[t] = vote[t] < 0.0f;
+    uint32_t nset = label_sets(nb, nt, in, label, queue);
+    size = tsl_calloc_array((size_t)nset + 1, sizeof *size);
+    csize = tsl_calloc_array((size_t)ncomp + 1, sizeof *csize);
+    sum = tsl_calloc_array((size_t)nset + 1, sizeof *sum);
+    if (!size || !csize || !sum) {
+        free(raw);
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    for (size_t t = 0; t < nt; t++) {
+        csize[comp[t]]++;
+        if (label[t] != NONE) {
+            size[label[t]]++;
+            sum[label[t]] += raw[t];
+        }
+    }
+    free(raw);
+    for (size_t t = 0; t < nt; t++) {
+        uint32_t l = label[t];
+        if (l != NONE && size[l] >= MIN_REGION && sum[l] < 0.0 && 2 * size[l] < csize[comp[t]])
+            mark[t] = 1;
+    }
+    /* The region's rim: triangles with a neighbour that stays as it is. */
+    for (size_t t = 0; t < nt; t++) {
+        if (mark[t] != 1)
+            continue;
+        (*flipped)++;
+        for (int i = 0; i < 3; i++) {
+            uint32_t y = nb[3 * t + (size_t)i];
+            if (y != NONE && mark[y] == 0)
+                mark[t] = 2;
+        }
+    }
+    st = TESSEL_OK;
+done:
+    free(g.start);
+    free(g.items);
+    free(nb);
+    free(label);
+    free(comp);
+    free(queue);
+    free(vote);
+    free(next);
+    free(in);
+    free(size);
+    free(csize);
+    free(sum);
+    return st;
+}
