@@ -29,6 +29,10 @@
 #define SMOOTH_ROUNDS 12
 /* Smaller inward regions are left alone: too few rays to trust. */
 #define MIN_REGION 32
+/* Rays cast at most: larger meshes cast from a hashed sample of their
+ * triangles (a ray crosses the whole grid, some hundred cells at 10^6
+ * triangles), and the averaging carries the votes to the rest. */
+#define RAY_BUDGET 65536
 
 /* A uniform grid over the mesh's box; each cell lists the triangles whose
  * boxes meet it (CSR). */
@@ -220,43 +224,50 @@ static int crossings(const ray_grid *g, const float *xyz, const uint32_t *tri, u
     }
 }
 
-typedef struct edge_rec {
-    uint64_t key;
-    uint32_t tri;
-    uint8_t side;
-} edge_rec;
-
-static int cmp_edge(const void *pa, const void *pb)
+/* A triangle's place in the ray sample (Wellons' lowbias32 mix): spread
+ * over the mesh whatever order the front made the triangles in. */
+static uint32_t mix(uint32_t x)
 {
-    const edge_rec *a = pa, *b = pb;
-    if (a->key != b->key)
-        return a->key < b->key ? -1 : 1;
-    return a->tri < b->tri ? -1 : a->tri > b->tri;
+    x ^= x >> 16;
+    x *= 0x7feb352dU;
+    x ^= x >> 15;
+    x *= 0x846ca68bU;
+    x ^= x >> 16;
+    return x;
 }
 
-/* nb[3 t + i]: the triangle across t's edge i, NONE on a border. */
-static tessel_status neighbours(const uint32_t *tri, size_t nt, uint32_t *nb)
+/* nb[3 t + i]: the triangle across t's edge i (from its vertex i to
+ * i + 1), NONE on a border; found among the triangles at vertex i. */
+static tessel_status neighbours(const uint32_t *tri, size_t nt, size_t nv, uint32_t *nb)
 {
-    edge_rec *e = tsl_alloc_array(3 * nt + 1, sizeof *e);
-    if (!e)
+    uint32_t *first = tsl_calloc_array(nv + 1, sizeof *first);
+    uint32_t *at = tsl_alloc_array(3 * nt, sizeof *at);
+    if (!first || !at) {
+        free(first);
+        free(at);
         return TESSEL_ERR_NOMEM;
+    }
+    for (size_t i = 0; i < 3 * nt; i++)
+        first[tri[i] + 1]++;
+    for (size_t v = 0; v < nv; v++)
+        first[v + 1] += first[v];
+    for (size_t i = 0; i < 3 * nt; i++)
+        at[first[tri[i]]++] = (uint32_t)(i / 3);
+    memmove(first + 1, first, nv * sizeof *first);
+    first[0] = 0;
     for (size_t t = 0; t < nt; t++)
         for (int i = 0; i < 3; i++) {
-            uint64_t a = tri[3 * t + (size_t)i], b = tri[3 * t + (size_t)(i + 1) % 3];
-            edge_rec *r = &e[3 * t + (size_t)i];
-            r->key = a < b ? a << 32 | b : b << 32 | a;
-            r->tri = (uint32_t)t;
-            r->side = (uint8_t)i;
-            nb[3 * t + (size_t)i] = NONE;
+            uint32_t a = tri[3 * t + (size_t)i], b = tri[3 * t + (size_t)(i + 1) % 3];
+            uint32_t found = NONE;
+            for (uint32_t e = first[a]; e < first[a + 1] && found == NONE; e++) {
+                const uint32_t *u = tri + 3 * (size_t)at[e];
+                if (at[e] != t && (u[0] == b || u[1] == b || u[2] == b))
+                    found = at[e];
+            }
+            nb[3 * t + (size_t)i] = found;
         }
-    qsort(e, 3 * nt, sizeof *e, cmp_edge);
-    for (size_t i = 0; i + 1 < 3 * nt; i++)
-        if (e[i].key == e[i + 1].key && (i + 2 == 3 * nt || e[i + 2].key != e[i].key)) {
-            nb[3 * (size_t)e[i].tri + e[i].side] = e[i + 1].tri;
-            nb[3 * (size_t)e[i + 1].tri + e[i + 1].side] = e[i].tri;
-            i++;
-        }
-    free(e);
+    free(first);
+    free(at);
     return TESSEL_OK;
 }
 
@@ -312,13 +323,14 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!nb || !label || !comp || !queue || !vote || !next || !in)
         goto done;
-    if ((st = neighbours(tri, nt, nb)) || (st = grid_build(&g, xyz, nv, tri, nt)))
+    if ((st = neighbours(tri, nt, nv, nb)) || (st = grid_build(&g, xyz, nv, tri, nt)))
         goto done;
 
     ptrdiff_t n = (ptrdiff_t)nt;
+    uint32_t stride = (uint32_t)((nt + RAY_BUDGET - 1) / RAY_BUDGET);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
     for (ptrdiff_t t = 0; t < n; t++) {
-        int c = crossings(&g, xyz, tri, (uint32_t)t);
+        int c = mix((uint32_t)t) % stride ? -1 : crossings(&g, xyz, tri, (uint32_t)t);
         vote[t] = c < 0 ? 0.0f : c % 2 ? -1.0f : 1.0f;
     }
     /* Raw votes are kept in next's place until the regions are judged. */

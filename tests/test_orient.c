@@ -1,0 +1,194 @@
+/* The orientation check by ray parity (src/orient.c) on a triangulated
+ * sphere whose triangles' windings the test sets: it must find a region
+ * turned inward, mark its rim, and leave alone what parity cannot judge
+ * (a whole component, an open surface). */
+#include "internal.h"
+#include "test.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PI 3.14159265358979323846
+#define RINGS 24
+#define SECTORS 48
+
+typedef struct sphere_mesh {
+    float xyz[3 * (2 + (RINGS - 1) * SECTORS)];
+    uint32_t tri[3 * 2 * RINGS * SECTORS];
+    size_t nv, nt;
+} sphere_mesh;
+
+static uint32_t ring_vertex(int i, int j)
+{
+    if (i == 0)
+        return 0;
+    if (i == RINGS)
+        return 1 + (RINGS - 1) * SECTORS;
+    return (uint32_t)(1 + (i - 1) * SECTORS + j % SECTORS);
+}
+
+static void centroid(const sphere_mesh *m, size_t t, double c[3])
+{
+    for (int k = 0; k < 3; k++)
+        c[k] = (m->xyz[3 * m->tri[3 * t] + (size_t)k] + m->xyz[3 * m->tri[3 * t + 1] + (size_t)k] +
+                m->xyz[3 * m->tri[3 * t + 2] + (size_t)k]) /
+               3.0;
+}
+
+static void add_tri(sphere_mesh *m, uint32_t a, uint32_t b, uint32_t c)
+{
+    if (a == b || b == c || a == c)
+        return;
+    uint32_t *v = m->tri + 3 * m->nt++;
+    v[0] = a;
+    v[1] = b;
+    v[2] = c;
+}
+
+/* A UV sphere of radius 1, every triangle facing out. */
+static void make_sphere(sphere_mesh *m)
+{
+    m->nv = m->nt = 0;
+    for (int i = 0; i <= RINGS; i++)
+        for (int j = 0; j < (i == 0 || i == RINGS ? 1 : SECTORS); j++) {
+            double th = PI * i / RINGS, ph = 2.0 * PI * j / SECTORS;
+            float *p = m->xyz + 3 * ring_vertex(i, j);
+            p[0] = (float)(sin(th) * cos(ph));
+            p[1] = (float)(sin(th) * sin(ph));
+            p[2] = (float)cos(th);
+            m->nv++;
+        }
+    for (int i = 0; i < RINGS; i++)
+        for (int j = 0; j < SECTORS; j++) {
+            uint32_t a = ring_vertex(i, j), b = ring_vertex(i + 1, j),
+                     c = ring_vertex(i + 1, j + 1), d = ring_vertex(i, j + 1);
+            add_tri(m, a, b, c);
+            add_tri(m, a, c, d);
+        }
+    /* Winding outward whatever the formula above gives. */
+    for (size_t t = 0; t < m->nt; t++) {
+        double p[3][3], u[3], w[3], n[3], c[3];
+        for (int i = 0; i < 3; i++)
+            tsl_load(m->xyz + 3 * (size_t)m->tri[3 * t + (size_t)i], p[i]);
+        tsl_sub(p[1], p[0], u);
+        tsl_sub(p[2], p[0], w);
+        tsl_cross(u, w, n);
+        centroid(m, t, c);
+        if (tsl_dot(n, c) < 0.0) {
+            uint32_t x = m->tri[3 * t + 1];
+            m->tri[3 * t + 1] = m->tri[3 * t + 2];
+            m->tri[3 * t + 2] = x;
+        }
+    }
+}
+
+static void reverse_where(sphere_mesh *m, double zmin)
+{
+    for (size_t t = 0; t < m->nt; t++) {
+        double c[3];
+        centroid(m, t, c);
+        if (c[2] > zmin) {
+            uint32_t x = m->tri[3 * t + 1];
+            m->tri[3 * t + 1] = m->tri[3 * t + 2];
+            m->tri[3 * t + 2] = x;
+        }
+    }
+}
+
+static size_t count_marked(const uint8_t *mark, size_t nt)
+{
+    size_t n = 0;
+    for (size_t t = 0; t < nt; t++)
+        n += mark[t] != 0;
+    return n;
+}
+
+static sphere_mesh m;
+static uint8_t mark[2 * RINGS * SECTORS], mark2[2 * RINGS * SECTORS];
+
+static void test_outward(void)
+{
+    make_sphere(&m);
+    size_t flipped = 1;
+    CHECK(tsl_orient_check(m.xyz, m.nv, m.tri, m.nt, 1, mark, &flipped) == TESSEL_OK);
+    CHECK(flipped == 0 && count_marked(mark, m.nt) == 0);
+}
+
+/* The cap above z = 0.5 wound inward: every cap triangle marked, nothing
+ * else; 2 exactly on the cap's rim. The same for any thread count. */
+static void test_inward_cap(void)
+{
+    make_sphere(&m);
+    reverse_where(&m, 0.5);
+    size_t flipped = 0, cap = 0, wrong = 0, rim_wrong = 0;
+    CHECK(tsl_orient_check(m.xyz, m.nv, m.tri, m.nt, 2, mark, &flipped) == TESSEL_OK);
+    for (size_t t = 0; t < m.nt; t++) {
+        double c[3];
+        centroid(&m, t, c);
+        bool in_cap = c[2] > 0.5;
+        cap += in_cap;
+        wrong += in_cap != (mark[t] != 0);
+        if (!in_cap)
+            continue;
+        /* On the rim: shares an edge with a triangle outside the cap. */
+        bool rim = false;
+        for (size_t u = 0; u < m.nt && !rim; u++) {
+            double d[3];
+            centroid(&m, u, d);
+            if (d[2] > 0.5)
+                continue;
+            int shared = 0;
+            for (int i = 0; i < 3; i++)
+                for (int j = 0; j < 3; j++)
+                    shared += m.tri[3 * t + (size_t)i] == m.tri[3 * u + (size_t)j];
+            rim = shared == 2;
+        }
+        rim_wrong += rim != (mark[t] == 2);
+    }
+    CHECK_MSG(cap > 100 && wrong == 0 && rim_wrong == 0 && flipped == cap,
+              "cap of %zu: %zu misjudged, %zu rim marks wrong, %zu flipped", cap, wrong,
+              rim_wrong, flipped);
+    CHECK(tsl_orient_check(m.xyz, m.nv, m.tri, m.nt, 1, mark2, &flipped) == TESSEL_OK);
+    CHECK(memcmp(mark, mark2, m.nt) == 0);
+}
+
+/* A whole sphere inward is one component: its orientation is the front's
+ * business, not this check's. */
+static void test_whole_inward(void)
+{
+    make_sphere(&m);
+    reverse_where(&m, -2.0);
+    size_t flipped = 1;
+    CHECK(tsl_orient_check(m.xyz, m.nv, m.tri, m.nt, 1, mark, &flipped) == TESSEL_OK);
+    CHECK(flipped == 0 && count_marked(mark, m.nt) == 0);
+}
+
+/* An open cap (the sphere above z = 0.6) with its top wound inward: the
+ * rays leave through the opening whichever way they point, so parity
+ * cannot judge and nothing is marked. */
+static void test_open_cap(void)
+{
+    make_sphere(&m);
+    size_t w = 0;
+    for (size_t t = 0; t < m.nt; t++) {
+        double c[3];
+        centroid(&m, t, c);
+        if (c[2] > 0.6)
+            memmove(m.tri + 3 * w++, m.tri + 3 * t, 3 * sizeof *m.tri);
+    }
+    m.nt = w;
+    reverse_where(&m, 0.85);
+    size_t flipped = 1;
+    CHECK(tsl_orient_check(m.xyz, m.nv, m.tri, m.nt, 1, mark, &flipped) == TESSEL_OK);
+    CHECK_MSG(m.nt > 200 && flipped == 0, "open cap of %zu: %zu marked", m.nt, flipped);
+}
+
+int main(void)
+{
+    test_outward();
+    test_inward_cap();
+    test_whole_inward();
+    test_open_cap();
+    return TEST_SUMMARY();
+}
