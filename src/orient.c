@@ -315,13 +315,14 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
     uint32_t *label = tsl_alloc_array(nt, sizeof *label);
     uint32_t *comp = tsl_alloc_array(nt, sizeof *comp);
     uint32_t *queue = tsl_alloc_array(nt, sizeof *queue);
+    float *raw = tsl_alloc_array(nt, sizeof *raw); /* the rays' votes */
     float *vote = tsl_alloc_array(nt, sizeof *vote);
     float *next = tsl_alloc_array(nt, sizeof *next);
     uint8_t *in = tsl_alloc_array(nt, sizeof *in);
     size_t *size = NULL, *csize = NULL;
     double *sum = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!nb || !label || !comp || !queue || !vote || !next || !in)
+    if (!nb || !label || !comp || !queue || !raw || !vote || !next || !in)
         goto done;
     if ((st = neighbours(tri, nt, nv, nb)) || (st = grid_build(&g, xyz, nv, tri, nt)))
         goto done;
@@ -331,17 +332,9 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
 #pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
     for (ptrdiff_t t = 0; t < n; t++) {
         int c = mix((uint32_t)t) % stride ? -1 : crossings(&g, xyz, tri, (uint32_t)t);
-        vote[t] = c < 0 ? 0.0f : c % 2 ? -1.0f : 1.0f;
+        raw[t] = c < 0 ? 0.0f : c % 2 ? -1.0f : 1.0f;
     }
-    /* Raw votes are kept in next's place until the regions are judged. */
-    float *raw = next;
-    next = tsl_alloc_array(nt, sizeof *next);
-    if (!next) {
-        next = raw;
-        st = TESSEL_ERR_NOMEM;
-        goto done;
-    }
-    memcpy(raw, vote, nt * sizeof *raw);
+    memcpy(vote, raw, nt * sizeof *vote);
     for (int r = 0; r < SMOOTH_ROUNDS; r++) {
 #pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
         for (ptrdiff_t t = 0; t < n; t++) {
@@ -371,7 +364,6 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
     csize = tsl_calloc_array((size_t)ncomp + 1, sizeof *csize);
     sum = tsl_calloc_array((size_t)nset + 1, sizeof *sum);
     if (!size || !csize || !sum) {
-        free(raw);
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
@@ -382,7 +374,6 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
             sum[label[t]] += raw[t];
         }
     }
-    free(raw);
     for (size_t t = 0; t < nt; t++) {
         uint32_t l = label[t];
         if (l != NONE && size[l] >= MIN_REGION && sum[l] < 0.0 && 2 * size[l] < csize[comp[t]])
@@ -407,6 +398,7 @@ done:
     free(label);
     free(comp);
     free(queue);
+    free(raw);
     free(vote);
     free(next);
     free(in);
