@@ -213,6 +213,30 @@ void tsl_trigrid_free(tsl_trigrid *g)
     memset(g, 0, sizeof *g);
 }
 
+tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint32_t **start,
+                                 uint32_t **corner)
+{
+    uint32_t *s = tsl_calloc_array(nv + 1, sizeof *s);
+    uint32_t *c = tsl_alloc_array(3 * nt + 1, sizeof *c);
+    if (!s || !c) {
+        free(s);
+        free(c);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t i = 0; i < 3 * nt; i++)
+        s[tri[i] + 1]++;
+    for (size_t v = 0; v < nv; v++)
+        s[v + 1] += s[v];
+    for (size_t i = 0; i < 3 * nt; i++)
+        c[s[tri[i]]++] = (uint32_t)i;
+    /* The fill advanced every start to the next vertex's; shift back. */
+    memmove(s + 1, s, nv * sizeof *s);
+    s[0] = 0;
+    *start = s;
+    *corner = c;
+    return TESSEL_OK;
+}
+
 static inline int32_t grid_coord(const tsl_trigrid *g, double x, int axis)
 {
     double c = floor((x - g->origin[axis]) * g->inv_cell);
@@ -2479,28 +2503,16 @@ static tessel_status tile_front(const af *g, const tessel_front_params *p, const
 static tessel_status single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched)
 {
     size_t nt = *count;
-    uint32_t *start = tsl_calloc_array(n + 1, sizeof *start);
-    uint32_t *corner = tsl_alloc_array(3 * nt, sizeof *corner);
+    uint32_t *start = NULL, *corner = NULL;
     uint8_t *alive = tsl_alloc_array(nt, sizeof *alive);
     uint32_t *todo = tsl_alloc_array(n, sizeof *todo);
     uint32_t *later = tsl_alloc_array(n, sizeof *later);
-    if (!start || !corner || !alive || !todo || !later) {
-        free(start);
-        free(corner);
+    if (!alive || !todo || !later || tsl_vertex_corners(tri, nt, n, &start, &corner)) {
         free(alive);
         free(todo);
         free(later);
         return TESSEL_ERR_NOMEM;
     }
-    for (size_t c = 0; c < 3 * nt; c++)
-        start[tri[c] + 1]++;
-    for (size_t v = 0; v < n; v++)
-        start[v + 1] += start[v];
-    for (size_t c = 0; c < 3 * nt; c++)
-        corner[start[tri[c]]++] = (uint32_t)c;
-    for (size_t v = n; v > 0; v--)
-        start[v] = start[v - 1];
-    start[0] = 0;
     memset(alive, 1, nt);
     size_t ntodo = 0;
     for (size_t v = 0; v < n; v++)

@@ -145,6 +145,13 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
 tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3]);
 void tsl_trigrid_free(tsl_trigrid *g);
 
+/* The corners of each vertex: corner[start[v] .. start[v + 1]) are the
+ * corners i (triangle i / 3, position i % 3) of tri[0 .. 3 nt) at vertex
+ * v < nv, in increasing order. Both arrays are allocated; the caller frees
+ * them. */
+tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint32_t **start,
+                                 uint32_t **corner);
+
 /* Exactly collinear vertices (zero area). */
 bool tsl_triangle_degenerate(const double *p[3]);
 /* Two non-degenerate triangles with vertex ids ia, ib and coordinates pa,

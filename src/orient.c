@@ -240,34 +240,23 @@ static uint32_t mix(uint32_t x)
  * i + 1), NONE on a border; found among the triangles at vertex i. */
 static tessel_status neighbours(const uint32_t *tri, size_t nt, size_t nv, uint32_t *nb)
 {
-    uint32_t *first = tsl_calloc_array(nv + 1, sizeof *first);
-    uint32_t *at = tsl_alloc_array(3 * nt, sizeof *at);
-    if (!first || !at) {
-        free(first);
-        free(at);
+    uint32_t *first, *corner;
+    if (tsl_vertex_corners(tri, nt, nv, &first, &corner))
         return TESSEL_ERR_NOMEM;
-    }
-    for (size_t i = 0; i < 3 * nt; i++)
-        first[tri[i] + 1]++;
-    for (size_t v = 0; v < nv; v++)
-        first[v + 1] += first[v];
-    for (size_t i = 0; i < 3 * nt; i++)
-        at[first[tri[i]]++] = (uint32_t)(i / 3);
-    memmove(first + 1, first, nv * sizeof *first);
-    first[0] = 0;
     for (size_t t = 0; t < nt; t++)
         for (int i = 0; i < 3; i++) {
             uint32_t a = tri[3 * t + (size_t)i], b = tri[3 * t + (size_t)(i + 1) % 3];
             uint32_t found = NONE;
             for (uint32_t e = first[a]; e < first[a + 1] && found == NONE; e++) {
-                const uint32_t *u = tri + 3 * (size_t)at[e];
-                if (at[e] != t && (u[0] == b || u[1] == b || u[2] == b))
-                    found = at[e];
+                uint32_t u = corner[e] / 3;
+                const uint32_t *w = tri + 3 * (size_t)u;
+                if (u != t && (w[0] == b || w[1] == b || w[2] == b))
+                    found = u;
             }
             nb[3 * t + (size_t)i] = found;
         }
     free(first);
-    free(at);
+    free(corner);
     return TESSEL_OK;
 }
 
