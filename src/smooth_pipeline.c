@@ -44,9 +44,11 @@
  * attempts in a row fail. Measured on the data sets of the project (noisy
  * bunny, elephant, man; the elephant with the front's seeds taken from
  * eight starting points). */
-#define GLOBAL_REPAIRS {{0.7, INFINITY}, {0.5, INFINITY}, {0.6, INFINITY}, {0.4, INFINITY}}
-#define LOCAL_REPAIRS                                                                  \
-    {{0.7, 1.0}, {0.7, 2.0}, {0.5, 4.0}, {0.6, 2.0}, {0.7, 4.0}, {0.4, 4.0}, {0.5, 8.0}}
+static const double global_repairs[][2] = {
+    {0.7, INFINITY}, {0.5, INFINITY}, {0.6, INFINITY}, {0.4, INFINITY}};
+static const double local_repairs[][2] = {{0.7, 1.0}, {0.7, 2.0}, {0.5, 4.0}, {0.6, 2.0},
+                                          {0.7, 4.0}, {0.4, 4.0}, {0.5, 8.0}};
+#define COUNT(a) (sizeof (a) / sizeof *(a))
 
 tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
 {
@@ -422,14 +424,18 @@ static tessel_status repair_orientation(tessel_mesh *mesh, const tessel_cloud *r
 {
     size_t nt = mesh->triangle_count, flipped = 0, kept = 0;
     uint8_t *mark = tsl_alloc_array(nt + 1, sizeof *mark);
-    uint32_t *start = tsl_alloc_array(3 * nt + 1, sizeof *start);
+    uint32_t *start = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!mark || !start)
+    if (!mark)
         goto done;
     if ((st = tsl_orient_check(reps->xyz, reps->count, mesh->triangles, nt, front->threads, mark,
                                &flipped)) ||
         !flipped)
         goto done;
+    if (!(start = tsl_alloc_array(3 * nt, sizeof *start))) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
     for (size_t t = 0; t < nt; t++) {
         const uint32_t *v = mesh->triangles + 3 * t;
         if (mark[t] == 2)
@@ -558,21 +564,18 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     /* Holes left: the front again around them with extra representatives,
      * the rest of the mesh kept as it is (every result is valid). */
     if (!st && s.front.border_edges > 0) {
-        static const double global[][2] = GLOBAL_REPAIRS, local[][2] = LOCAL_REPAIRS;
-        st = repair_holes(global, sizeof global / sizeof *global, 1, mesh, &smoothed, projector,
+        st = repair_holes(global_repairs, COUNT(global_repairs), 1, mesh, &smoothed, projector,
                           &p.front, callbacks, &reps, &lines, &s.front);
         if (!st && s.front.border_edges > 0)
-            st = repair_holes(local, sizeof local / sizeof *local, 2, mesh, &smoothed,
+            st = repair_holes(local_repairs, COUNT(local_repairs), 2, mesh, &smoothed,
                               projector, &p.front, callbacks, &reps, &lines, &s.front);
     }
     if (!st && lines)
         st = repair_orientation(mesh, &reps, lines, &p.front, callbacks, &s.front,
                                 &s.reoriented);
-    if (!st && s.reoriented && s.front.border_edges > 0) {
-        static const double local[][2] = LOCAL_REPAIRS;
-        st = repair_holes(local, sizeof local / sizeof *local, 2, mesh, &smoothed, projector,
+    if (!st && s.reoriented && s.front.border_edges > 0)
+        st = repair_holes(local_repairs, COUNT(local_repairs), 2, mesh, &smoothed, projector,
                           &p.front, callbacks, &reps, &lines, &s.front);
-    }
     free(lines);
     if (st)
         goto fail;
