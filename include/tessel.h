@@ -605,6 +605,18 @@ typedef struct tessel_greedy_params {
                               their boundary and they are not sent to the
                               sink again. Default NULL */
     size_t existing_count;
+    int orient_check;      /* 1: hold every triangle until the end, cast
+                              rays to find regions meshed inside out (the
+                              front can step across a place where two
+                              sheets touch, a hand on a thigh, and carry
+                              the wrong side onto a whole limb), rebuild
+                              them the right way round, then send all to
+                              the sink. Memory then holds the mesh, about
+                              24 bytes per point more. Only for clouds
+                              with neither normals nor a viewpoint, and
+                              without existing triangles. 0: stream
+                              triangles as they are final. Not in the
+                              paper; docs/greedy.md. Default 1 */
 } tessel_greedy_params;
 TESSEL_API tessel_greedy_params tessel_greedy_params_default(void);
 
@@ -632,21 +644,26 @@ typedef struct tessel_recon_summary {
     size_t holes_closed;         /* boundary loops closed (see max_hole) */
     size_t rejected_intersecting;/* candidate triangles refused because they
                                     would have intersected the mesh */
-    size_t peak_held_triangles;  /* most triangles held in memory at once */
+    size_t peak_held_triangles;  /* most triangles held in memory at once
+                                    (all of them with orient_check) */
+    size_t reoriented;           /* triangles of regions found inside out
+                                    and rebuilt (see orient_check) */
     double spacing;              /* mean spacing used, world units */
     double seconds;              /* wall-clock time of the call */
 } tessel_recon_summary;
 
 /* Reconstructs cloud and sends the triangles to sink in batches as soon as
  * no later triangle can touch them (streaming: memory holds the points and
- * a band of triangles behind the front, not the mesh). Triangles index the
+ * a band of triangles behind the front, not the mesh), or all at the end
+ * when params->orient_check applies (the default). Triangles index the
  * cloud's points and are counter-clockwise seen from outside on closed
  * surfaces (from the side of the input normals or viewpoint, when the cloud
  * has them, on open ones). The output is edge- and vertex-manifold,
  * consistently oriented, without self-intersecting, duplicate or degenerate
  * triangles, and the same for the same input and params. params and summary
  * may be NULL; the cloud must have fewer than 2^32 - 1 points and finite
- * coordinates. Single-threaded. */
+ * coordinates. Single-threaded but for the orientation check's rays
+ * (OpenMP). */
 TESSEL_API tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
                                                    const tessel_greedy_params *params,
                                                    const tessel_callbacks *callbacks,

@@ -1040,7 +1040,7 @@ static tessel_status close_holes(gp *g)
 static tessel_status progress(gp *g)
 {
     double f = (double)g->processed / (double)g->n;
-    return tsl_progress(g->cb, "greedy", f < 1.0 ? f : 1.0);
+    return tsl_progress(g->cb, g->stage, f < 1.0 ? f : 1.0);
 }
 
 static tessel_status run(gp *g)
@@ -1091,6 +1091,7 @@ tessel_greedy_params tessel_greedy_params_default(void)
     p.max_hole = 16;
     p.existing = NULL;
     p.existing_count = 0;
+    p.orient_check = 1;
     return p;
 }
 
@@ -1099,6 +1100,62 @@ static double now_seconds(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* One pass of the front over the cloud (sections 3-4) with checked
+ * params; progress under `stage`. */
+tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                          const char *stage, const tessel_callbacks *callbacks,
+                          const tessel_triangle_sink *sink, tessel_recon_summary *summary)
+{
+    const tessel_greedy_params p = *params;
+    gp g;
+    memset(&g, 0, sizeof g);
+    g.cloud = cloud;
+    g.n = cloud->count;
+    g.mu = p.mu;
+    g.cos_alpha = cos(p.max_angle * 3.14159265358979323846 / 180.0);
+    g.beta = p.min_angle * 3.14159265358979323846 / 180.0;
+    g.max_spacing = p.max_spacing;
+    g.max_hole = p.max_hole;
+    g.plane_axis = p.plane == TESSEL_GREEDY_PLANE_AXIS;
+    g.cb = callbacks;
+    g.stage = stage;
+    g.sink = sink;
+    g.sum.points_in = g.n;
+    tessel_status s = tsl_gp_init(&g);
+    if (s == TESSEL_OK && p.existing_count)
+        s = tsl_gp_import_existing(&g, p.existing, p.existing_count);
+    if (s == TESSEL_OK)
+        s = tsl_progress(callbacks, stage, 0.0);
+    if (s == TESSEL_OK)
+        s = run(&g);
+    if (s == TESSEL_OK)
+        s = close_holes(&g);
+    if (s == TESSEL_OK)
+        s = tsl_gp_sweep(&g, 1);
+    if (s == TESSEL_OK)
+        s = tsl_gp_flush_out(&g);
+    if (s == TESSEL_OK)
+        s = tsl_progress(callbacks, stage, 1.0);
+    if (s == TESSEL_OK) {
+        /* Every point of an open fan has two boundary edges (the mesh is
+         * vertex-manifold), every boundary edge two such points. */
+        for (size_t i = 0; i < g.n; i++) {
+            int si = g.state[i] & ST_MASK;
+            g.sum.boundary_edges += si == ST_FRINGE || si == ST_BOUNDARY;
+        }
+        for (size_t i = 0; i < g.uf_count; i++)
+            g.sum.components += g.uf[i] == i;
+        *summary = g.sum;
+        tsl_log(callbacks, TESSEL_LOG_DEBUG,
+                "%s: %zu of %zu points used, %zu triangles, %zu components, "
+                "%zu boundary edges, spacing %g",
+                stage, g.sum.points_used, g.sum.points_in, g.sum.triangles, g.sum.components,
+                g.sum.boundary_edges, g.sum.spacing);
+    }
+    tsl_gp_free(&g);
+    return s;
 }
 
 tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
@@ -1117,69 +1174,30 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
         !(p.min_angle >= 0.0 && p.min_angle <= 45.0) ||
         !(p.max_spacing >= 1.0 && p.max_spacing <= 1000.0) || p.max_hole > 1000 ||
         (p.plane != TESSEL_GREEDY_PLANE_PCA && p.plane != TESSEL_GREEDY_PLANE_AXIS) ||
-        (p.existing_count && !p.existing))
+        (p.existing_count && !p.existing) || (p.orient_check != 0 && p.orient_check != 1))
         return TESSEL_ERR_INVALID_ARG;
     if (cloud->count >= NONE)
         return TESSEL_ERR_LIMIT;
     if (cloud->count < 3)
         return TESSEL_ERR_TOO_FEW_POINTS;
-    gp g;
-    memset(&g, 0, sizeof g);
-    g.cloud = cloud;
-    g.n = cloud->count;
-    g.mu = p.mu;
-    g.cos_alpha = cos(p.max_angle * 3.14159265358979323846 / 180.0);
-    g.beta = p.min_angle * 3.14159265358979323846 / 180.0;
-    g.max_spacing = p.max_spacing;
-    g.max_hole = p.max_hole;
-    g.plane_axis = p.plane == TESSEL_GREEDY_PLANE_AXIS;
-    g.cb = callbacks;
-    g.sink = sink;
-    g.sum.points_in = g.n;
-    tessel_status s = tsl_gp_init(&g);
-    if (s == TESSEL_OK && p.existing_count)
-        s = tsl_gp_import_existing(&g, p.existing, p.existing_count);
-    if (s == TESSEL_OK)
-        s = tsl_progress(callbacks, "greedy", 0.0);
-    if (s == TESSEL_OK)
-        s = run(&g);
-    if (s == TESSEL_OK)
-        s = close_holes(&g);
-    if (s == TESSEL_OK)
-        s = tsl_gp_sweep(&g, 1);
-    if (s == TESSEL_OK)
-        s = tsl_gp_flush_out(&g);
-    if (s == TESSEL_OK)
-        s = tsl_progress(callbacks, "greedy", 1.0);
-    if (s == TESSEL_OK) {
-        /* Every point of an open fan has two boundary edges (the mesh is
-         * vertex-manifold), every boundary edge two such points. */
-        for (size_t i = 0; i < g.n; i++) {
-            int si = g.state[i] & ST_MASK;
-            g.sum.boundary_edges += si == ST_FRINGE || si == ST_BOUNDARY;
-        }
-        for (size_t i = 0; i < g.uf_count; i++)
-            g.sum.components += g.uf[i] == i;
-        g.sum.seconds = now_seconds() - t0;
-        if (summary)
-            *summary = g.sum;
-        tsl_log(callbacks, TESSEL_LOG_DEBUG,
-                "greedy: %zu of %zu points used, %zu triangles, %zu components, "
-                "%zu boundary edges, spacing %g",
-                g.sum.points_used, g.sum.points_in, g.sum.triangles, g.sum.components,
-                g.sum.boundary_edges, g.sum.spacing);
-    }
-    tsl_gp_free(&g);
-    return s;
+    tessel_recon_summary sum;
+    memset(&sum, 0, sizeof sum);
+    /* Input normals or a viewpoint decide the side already; with existing
+     * triangles the caller holds the mesh, and checks it whole. */
+    tessel_status s;
+    if (p.orient_check && !cloud->normals && !cloud->has_viewpoint && !p.existing_count)
+        s = tsl_gp_oriented(cloud, &p, callbacks, sink, &sum);
+    else
+        s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, &sum);
+    if (s != TESSEL_OK)
+        return s;
+    sum.seconds = now_seconds() - t0;
+    if (summary)
+        *summary = sum;
+    return TESSEL_OK;
 }
 
-/* Collects the streamed triangles for tessel_reconstruct_greedy_mesh. */
-typedef struct gp_collect {
-    uint32_t *tris;
-    size_t count, cap;
-} gp_collect;
-
-static tessel_status collect_emit(void *user, const uint32_t *tris, size_t count)
+tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count)
 {
     gp_collect *c = user;
     size_t need;
@@ -1209,7 +1227,7 @@ tessel_status tessel_reconstruct_greedy_mesh(const tessel_cloud *cloud,
         return TESSEL_ERR_INVALID_ARG;
     memset(mesh, 0, sizeof *mesh);
     gp_collect c = {NULL, 0, 0};
-    tessel_triangle_sink sink = {collect_emit, &c};
+    tessel_triangle_sink sink = {tsl_gp_collect_emit, &c};
     tessel_status s = tessel_reconstruct_greedy(cloud, params, callbacks, &sink, summary);
     if (s != TESSEL_OK) {
         free(c.tris);

@@ -3,6 +3,7 @@
  *   src/greedy.c        reference points, seeds, the main loop, the API
  *   src/greedy_store.c  dexel array, triangle pool, fans, retirement, set-up
  *   src/greedy_guard.c  exact intersection tests, the free-cone certificate
+ *   src/greedy_orient.c regions meshed inside out, found and rebuilt
  * Not installed. */
 #ifndef TESSEL_GREEDY_INTERNAL_H
 #define TESSEL_GREEDY_INTERNAL_H
@@ -108,6 +109,7 @@ typedef struct gp {
     uint32_t max_hole;
     int plane_axis;
     const tessel_callbacks *cb;
+    const char *stage;    /* progress label */
     const tessel_triangle_sink *sink;
 
     /* points in dexel order */
@@ -359,6 +361,30 @@ static inline void project_point(const gp *g, uint32_t R, const gp_frame *f, uin
  * is prepended (b == ls), appended (a == le), or closes the fan (both, with
  * at least three triangles in all), or when the point had no triangle. */
 enum { LINK_FAIL = 0, LINK_NEW, LINK_PREPEND, LINK_APPEND, LINK_CLOSE };
+
+/* ---- src/greedy.c ---- */
+
+/* One pass of the front over the cloud (params already checked), its
+ * progress reported as `stage`; summary->seconds is left 0. */
+tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                          const char *stage, const tessel_callbacks *callbacks,
+                          const tessel_triangle_sink *sink, tessel_recon_summary *summary);
+
+/* A sink that appends the triangles to a growing array. */
+typedef struct gp_collect {
+    uint32_t *tris;
+    size_t count, cap;
+} gp_collect;
+tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count);
+
+/* ---- src/greedy_orient.c ---- */
+
+/* The pass with every triangle held, checked by ray parity (src/orient.c),
+ * regions meshed inside out rebuilt by a second pass, then all sent to
+ * sink. */
+tessel_status tsl_gp_oriented(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                              const tessel_callbacks *callbacks,
+                              const tessel_triangle_sink *sink, tessel_recon_summary *summary);
 
 /* ---- src/greedy_store.c ---- */
 

@@ -68,22 +68,23 @@ static size_t cell_id(const ray_grid *g, int x, int y, int z)
     return ((size_t)z * (size_t)g->n[1] + (size_t)y) * (size_t)g->n[0] + (size_t)x;
 }
 
-static tessel_status grid_build(ray_grid *g, const float *xyz, size_t nv, const uint32_t *tri,
-                                size_t nt)
+/* The box is the triangles': points no triangle uses (an outlier far
+ * away) would only stretch the grid. */
+static tessel_status grid_build(ray_grid *g, const float *xyz, const uint32_t *tri, size_t nt)
 {
     double hi[3], len = 0.0;
     for (int k = 0; k < 3; k++) {
         g->lo[k] = INFINITY;
         hi[k] = -INFINITY;
     }
-    for (size_t i = 0; i < nv; i++)
-        for (int k = 0; k < 3; k++) {
-            g->lo[k] = fmin(g->lo[k], xyz[3 * i + (size_t)k]);
-            hi[k] = fmax(hi[k], xyz[3 * i + (size_t)k]);
-        }
     for (size_t t = 0; t < nt; t++) {
         double p[3][3], d[3];
         tri_points(xyz, tri + 3 * t, p);
+        for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) {
+                g->lo[k] = fmin(g->lo[k], p[i][k]);
+                hi[k] = fmax(hi[k], p[i][k]);
+            }
         tsl_sub(p[1], p[0], d);
         len += tsl_norm(d);
     }
@@ -313,7 +314,7 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!nb || !label || !comp || !queue || !raw || !vote || !next || !in)
         goto done;
-    if ((st = neighbours(tri, nt, nv, nb)) || (st = grid_build(&g, xyz, nv, tri, nt)))
+    if ((st = neighbours(tri, nt, nv, nb)) || (st = grid_build(&g, xyz, tri, nt)))
         goto done;
 
     ptrdiff_t n = (ptrdiff_t)nt;

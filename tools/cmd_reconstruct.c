@@ -16,8 +16,10 @@ static const char greedy_help[] =
     "ordered by angle on its tangent plane, skipping those hidden by the mesh\n"
     "boundary. Every triangle is checked exactly: the output is manifold,\n"
     "consistently oriented (counter-clockwise seen from outside on closed\n"
-    "surfaces) and free of self-intersections. Best on clean, evenly sampled\n"
-    "clouds; for noisy ones use --method smooth.\n\n"
+    "surfaces) and free of self-intersections. Without input normals or a\n"
+    "viewpoint, rays then find regions meshed inside out (where two sheets\n"
+    "touch, a hand on a thigh) and those are rebuilt. Best on clean, evenly\n"
+    "sampled clouds; for noisy ones use --method smooth.\n\n"
     "Other methods:\n"
     "  --method smooth          noisy clouds (see --method smooth --help)\n"
     "  --mode height|range|grid fixed projection plane: terrain, scans from\n"
@@ -37,6 +39,9 @@ static const char greedy_help[] =
     "  --max-spacing K    no edge spans more than about 2*mu*K mean spacings;\n"
     "                     points with no neighbour within mu*K are isolated\n"
     "                     (default 4)\n"
+    "  --stream           write triangles as they are final, without the\n"
+    "                     inside-out check: memory for the points and the\n"
+    "                     front only, not the mesh (for the largest clouds)\n"
     "  --ascii            write ascii PLY\n\n";
 
 typedef struct greedy_opts {
@@ -50,6 +55,10 @@ static int greedy_option(void *ctx, int argc, char **argv, int *i)
     const char *a = argv[*i];
     if (strcmp(a, "--ascii") == 0)
         return o->ascii = 1;
+    if (strcmp(a, "--stream") == 0) {
+        o->p.orient_check = 0;
+        return 1;
+    }
     if (strcmp(a, "--mu") && strcmp(a, "--max-angle") && strcmp(a, "--min-angle") &&
         strcmp(a, "--plane") && strcmp(a, "--max-spacing") && strcmp(a, "--method"))
         return 0;
@@ -141,13 +150,15 @@ static int greedy(int argc, char **argv)
                "\"left_duplicate\": %zu, \"left_isolated\": %zu, \"left_closed_in\": %zu, "
                "\"left_untriangulated\": %zu, \"triangles\": %zu, \"components\": %zu, "
                "\"boundary_edges\": %zu, \"seeds\": %zu, \"rejected_intersecting\": %zu, "
-               "\"peak_held_triangles\": %zu, \"spacing\": %.9g, \"mu\": %g, "
+               "\"peak_held_triangles\": %zu, \"reoriented\": %zu, \"spacing\": %.9g, "
+               "\"mu\": %g, "
                "\"max_angle\": %g, \"min_angle\": %g, \"plane\": \"%s\", "
                "\"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
                "\"write_seconds\": %.6f, \"seconds\": %.6f, \"points_per_second\": %.0f}\n",
                n, sum.points_used, sum.left_duplicate, sum.left_isolated, sum.left_closed_in,
                sum.left_untriangulated, sum.triangles, sum.components, sum.boundary_edges,
-               sum.seeds, sum.rejected_intersecting, sum.peak_held_triangles, sum.spacing,
+               sum.seeds, sum.rejected_intersecting, sum.peak_held_triangles, sum.reoriented,
+               sum.spacing,
                o.p.mu, o.p.max_angle, o.p.min_angle,
                o.p.plane == TESSEL_GREEDY_PLANE_AXIS ? "axis" : "pca", t_read, sum.seconds,
                t_write, seconds, rate);
@@ -164,6 +175,11 @@ static int greedy(int argc, char **argv)
                     "by the surface, %zu with no valid triangle\n",
                     left, sum.left_duplicate, sum.left_isolated, sum.left_closed_in,
                     sum.left_untriangulated);
+        if (sum.reoriented)
+            fprintf(stderr,
+                    "tessel: %zu triangles of regions meshed inside out were turned and "
+                    "their seams meshed again\n",
+                    sum.reoriented);
         fprintf(stderr,
                 "tessel: wrote %s in %.2f s (read %.2f s, reconstruction %.3f s = %.2fM "
                 "points/s, write %.2f s)\n",
