@@ -101,6 +101,17 @@ static void closed_surface(const char *name, tessel_cloud *c, long euler)
     CHECK_MSG(signed_volume(&m) > 0.0, "%s: not oriented outward", name);
     CHECK(interpolates(c, &m));
     tessel_mesh_free(&m);
+    /* Coordinates only, as most files come: the orientation check runs and
+     * finds nothing to turn on an evenly sampled closed surface. */
+    float *normals = c->normals;
+    c->normals = NULL;
+    rep = recon(name, c, &p, &m, &sum);
+    CHECK_MSG(sum.reoriented == 0 && rep.boundary_edges == 0 && rep.euler == euler,
+              "%s without normals: %zu turned, %zu boundary edges, euler %ld", name,
+              sum.reoriented, rep.boundary_edges, rep.euler);
+    CHECK_MSG(signed_volume(&m) > 0.0, "%s without normals: not oriented outward", name);
+    c->normals = normals;
+    tessel_mesh_free(&m);
 }
 
 static void test_closed_surfaces(void)
@@ -319,6 +330,9 @@ static void test_options(void)
               r0.mean_min_angle_deg);
     tessel_mesh_free(&m);
     tessel_mesh_free(&m0);
+    p = tessel_greedy_params_default();
+    p.orient_check = 2;
+    CHECK(tessel_reconstruct_greedy_mesh(&c, &p, NULL, &m, &sum) == TESSEL_ERR_INVALID_ARG);
     tessel_cloud_free(&c);
 
     /* An open surface takes its side from the input normals. */
@@ -546,6 +560,12 @@ static void test_cli(void)
     tessel_mesh m;
     CHECK(tessel_mesh_read(&m, out, NULL, NULL) == TESSEL_OK);
     tessel_mesh_report rep = check_mesh(&m);
+    CHECK(tessel_mesh_report_valid(&rep) && m.triangle_count > c.count);
+    tessel_mesh_free(&m);
+    snprintf(args, sizeof args, "%s %s --stream --quiet", in, out);
+    CHECK(run_cli(args) == 0);
+    CHECK(tessel_mesh_read(&m, out, NULL, NULL) == TESSEL_OK);
+    rep = check_mesh(&m);
     CHECK(tessel_mesh_report_valid(&rep) && m.triangle_count > c.count);
     tessel_mesh_free(&m);
     snprintf(args, sizeof args, "%s %s --mu 0.5", in, out);
