@@ -22,6 +22,10 @@
  *                        south pole to r_max at the north pole
  *   surf_sphere_fibonacci  n points of the Fibonacci lattice on the unit
  *                        sphere, jittered (fast: for 10^7-point benchmarks)
+ *   surf_two_spheres     two unit spheres, centres (0,0,0) and
+ *                        (2 + gap,0,0), coordinates only; with
+ *                        surf_two_spheres_inward, the percent of a mesh's
+ *                        area that faces its own sphere's centre
  *   surf_noise           adds Gaussian noise along random directions
  */
 #ifndef TESSEL_TESTS_SURFACES_H
@@ -249,6 +253,55 @@ static inline tessel_status surf_sphere(tessel_cloud *c, double r, uint64_t seed
 {
     size_t expected = (size_t)(4.0 * SURF_PI / (0.8 * r * r)) + 16;
     return surf_throw(c, surf_draw_sphere, NULL, NULL, r, expected, 30.0, seed);
+}
+
+/* Two unit spheres sampled like surf_sphere(r), the second moved by
+ * 2 + gap along x; coordinates only (as most files come: no normals). */
+static inline tessel_status surf_two_spheres(tessel_cloud *c, double r, double gap,
+                                             uint64_t seed)
+{
+    tessel_cloud one;
+    tessel_status s = surf_sphere(&one, r, seed);
+    if (s != TESSEL_OK)
+        return s;
+    s = tessel_cloud_alloc(c, 2 * one.count, 0, 0);
+    for (size_t i = 0; s == TESSEL_OK && i < one.count; i++)
+        for (int k = 0; k < 3; k++) {
+            float x = one.xyz[3 * i + (size_t)k];
+            c->xyz[3 * i + (size_t)k] = x;
+            c->xyz[3 * (one.count + i) + (size_t)k] = k == 0 ? x + 2.0f + (float)gap : x;
+        }
+    tessel_cloud_free(&one);
+    return s;
+}
+
+/* Percent of the area of triangles tri[0 .. nt) over xyz, on two spheres
+ * made by surf_two_spheres(gap), whose normal points towards the centre of
+ * the sphere the triangle lies on. */
+static inline double surf_two_spheres_inward(const float *xyz, const uint32_t *tri, size_t nt,
+                                             double gap)
+{
+    double inward = 0.0, area = 0.0;
+    for (size_t t = 0; t < nt; t++) {
+        double p[3][3], u[3], w[3], n[3], o[3];
+        for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++)
+                p[i][k] = xyz[3 * (size_t)tri[3 * t + (size_t)i] + (size_t)k];
+        for (int k = 0; k < 3; k++) {
+            u[k] = p[1][k] - p[0][k];
+            w[k] = p[2][k] - p[0][k];
+            o[k] = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
+        }
+        o[0] -= o[0] < 1.0 + 0.5 * gap ? 0.0 : 2.0 + gap; /* from its centre */
+        n[0] = u[1] * w[2] - u[2] * w[1];
+        n[1] = u[2] * w[0] - u[0] * w[2];
+        n[2] = u[0] * w[1] - u[1] * w[0];
+        double a = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        area += a;
+        if (n[0] * o[0] + n[1] * o[1] + n[2] * o[2] < 0.0)
+            inward += a;
+    }
+    return area > 0.0 ? 100.0 * inward / area : 100.0;
 }
 
 typedef struct surf_torus_ctx {

@@ -463,59 +463,25 @@ static void test_streaming(void)
     tessel_cloud_free(&c);
 }
 
-/* Percent of the area of triangles t[0 .. n) of two unit spheres centred
- * at x = 0 and x = 2 + gap whose normal points towards their centre. */
-static double inward_percent(const tessel_cloud *c, const uint32_t *t, size_t n, double gap)
-{
-    double inward = 0.0, area = 0.0;
-    for (size_t i = 0; i < n; i++) {
-        double p[3][3], u[3], w[3], nr[3], o[3];
-        for (int j = 0; j < 3; j++)
-            for (int k = 0; k < 3; k++)
-                p[j][k] = c->xyz[3 * (size_t)t[3 * i + (size_t)j] + (size_t)k];
-        for (int k = 0; k < 3; k++) {
-            u[k] = p[1][k] - p[0][k];
-            w[k] = p[2][k] - p[0][k];
-            o[k] = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
-        }
-        o[0] -= o[0] < 1.0 + 0.5 * gap ? 0.0 : 2.0 + gap;
-        nr[0] = u[1] * w[2] - u[2] * w[1];
-        nr[1] = u[2] * w[0] - u[0] * w[2];
-        nr[2] = u[0] * w[1] - u[1] * w[0];
-        double a = sqrt(nr[0] * nr[0] + nr[1] * nr[1] + nr[2] * nr[2]);
-        area += a;
-        if (nr[0] * o[0] + nr[1] * o[1] + nr[2] * o[2] < 0.0)
-            inward += a;
-    }
-    return area > 0.0 ? 100.0 * inward / area : 100.0;
-}
-
 /* Two spheres closer than the sampling: the front steps from one onto the
  * other and carries the wrong side across. The orientation check finds
  * the region, and the repair turns it and meshes the seams again. */
 static void test_touching_spheres(void)
 {
     const double gap = 0.02;
-    tessel_cloud one, c;
-    CHECK(surf_sphere(&one, 0.04, 21) == TESSEL_OK);
-    CHECK(tessel_cloud_alloc(&c, 2 * one.count, 0, 0) == TESSEL_OK);
-    for (size_t i = 0; i < one.count; i++)
-        for (int k = 0; k < 3; k++) {
-            float x = one.xyz[3 * i + (size_t)k];
-            c.xyz[3 * i + (size_t)k] = x;
-            c.xyz[3 * (one.count + i) + (size_t)k] = k == 0 ? x + 2.0f + (float)gap : x;
-        }
+    tessel_cloud c;
+    CHECK(surf_two_spheres(&c, 0.04, gap, 21) == TESSEL_OK);
     tessel_greedy_params p = tessel_greedy_params_default();
     p.orient_check = 0;
     sink_buf raw = {0};
     tessel_triangle_sink rs = {sink_emit, &raw};
     CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &rs, NULL) == TESSEL_OK);
-    double before = inward_percent(&c, raw.t, raw.n, gap);
+    double before = surf_two_spheres_inward(c.xyz, raw.t, raw.n, gap);
     tessel_mesh m;
     tessel_recon_summary sum;
     p.orient_check = 1;
     tessel_mesh_report rep = recon("touching spheres", &c, &p, &m, &sum);
-    double after = inward_percent(&c, m.triangles, m.triangle_count, gap);
+    double after = surf_two_spheres_inward(m.xyz, m.triangles, m.triangle_count, gap);
     printf("touching spheres: %.2f%% of the area inward without the check, %.2f%% with it "
            "(%zu triangles turned), %zu boundary edges\n",
            before, after, sum.reoriented, rep.boundary_edges);
@@ -526,7 +492,6 @@ static void test_touching_spheres(void)
     CHECK(rep.boundary_edges * 100 < rep.edges);
     tessel_mesh_free(&m);
     free(raw.t);
-    tessel_cloud_free(&one);
     tessel_cloud_free(&c);
 }
 

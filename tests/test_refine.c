@@ -463,15 +463,8 @@ static void test_pipeline_threads_and_cancel(void)
 static void test_pipeline_touching_spheres(void)
 {
     const double gap = 0.02;
-    tessel_cloud one, c;
-    CHECK(surf_sphere(&one, 0.04, 21) == TESSEL_OK);
-    CHECK(tessel_cloud_alloc(&c, 2 * one.count, 0, 0) == TESSEL_OK);
-    for (size_t i = 0; i < one.count; i++)
-        for (int k = 0; k < 3; k++) {
-            float x = one.xyz[3 * i + (size_t)k];
-            c.xyz[3 * i + (size_t)k] = x;
-            c.xyz[3 * (one.count + i) + (size_t)k] = k == 0 ? x + 2.0f + (float)gap : x;
-        }
+    tessel_cloud c;
+    CHECK(surf_two_spheres(&c, 0.04, gap, 21) == TESSEL_OK);
     surf_noise(&c, 0.004, 22);
     tessel_smooth_recon_stats s;
     tessel_mesh m;
@@ -480,34 +473,13 @@ static void test_pipeline_touching_spheres(void)
     CHECK_MSG(tessel_mesh_report_valid(&r) && r.self_intersections == 0 && r.components == 2,
               "touching spheres: %zu components, %zu self-intersections", r.components,
               r.self_intersections);
-    double inward = 0.0, area = 0.0;
-    for (size_t t = 0; t < m.triangle_count; t++) {
-        double p[3][3], u[3], w[3], n[3], o[3];
-        for (int i = 0; i < 3; i++)
-            for (int k = 0; k < 3; k++)
-                p[i][k] = m.xyz[3 * (size_t)m.triangles[3 * t + (size_t)i] + (size_t)k];
-        for (int k = 0; k < 3; k++) {
-            u[k] = p[1][k] - p[0][k];
-            w[k] = p[2][k] - p[0][k];
-            o[k] = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
-        }
-        o[0] -= o[0] < 1.0 + 0.5 * gap ? 0.0 : 2.0 + gap; /* from its centre */
-        n[0] = u[1] * w[2] - u[2] * w[1];
-        n[1] = u[2] * w[0] - u[0] * w[2];
-        n[2] = u[0] * w[1] - u[1] * w[0];
-        double a = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        area += a;
-        if (n[0] * o[0] + n[1] * o[1] + n[2] * o[2] < 0.0)
-            inward += a;
-    }
-    CHECK_MSG(inward < 0.01 * area, "touching spheres: %.2f%% of the area faces inward",
-              100.0 * inward / area);
+    double inward = surf_two_spheres_inward(m.xyz, m.triangles, m.triangle_count, gap);
+    CHECK_MSG(inward < 1.0, "touching spheres: %.2f%% of the area faces inward", inward);
     CHECK(s.reoriented > 0);
     printf("touching spheres: %zu triangles turned outward, %.2f%% of the area inward, %zu "
            "border edges\n",
-           s.reoriented, 100.0 * inward / area, r.boundary_edges);
+           s.reoriented, inward, r.boundary_edges);
     tessel_mesh_free(&m);
-    tessel_cloud_free(&one);
     tessel_cloud_free(&c);
 }
 
