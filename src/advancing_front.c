@@ -2497,10 +2497,7 @@ static tessel_status tile_front(const af *g, const tessel_front_params *p, const
     return st ? st : run_fronts(t, cb);
 }
 
-/* Removes triangles (tri[3 i ..], *count of them) at every vertex
- * with more than one fan, until none is left; only vertices flagged in
- * touched (cleared on return) can have one. */
-static tessel_status single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched)
+tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched)
 {
     size_t nt = *count;
     uint32_t *start = NULL, *corner = NULL;
@@ -2519,7 +2516,11 @@ static tessel_status single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t
         if (touched[v])
             todo[ntodo++] = (uint32_t)v;
     while (ntodo) {
-        size_t next = 0;
+        /* Each round judges its vertices on the triangles alive when it
+         * starts, then drops: dropping at one vertex as soon as it is seen
+         * would change what the next one sees, and more pieces get cut off
+         * (man.ply, greedy's repair: 24 components against 17). */
+        size_t nbad = 0;
         for (size_t q = 0; q < ntodo; q++) {
             uint32_t v = todo[q];
             touched[v] = 0;
@@ -2536,8 +2537,12 @@ static tessel_status single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t
                 }
                 border += !twin;
             }
-            if (border <= 1)
-                continue;
+            if (border > 1)
+                todo[nbad++] = v;
+        }
+        size_t next = 0;
+        for (size_t q = 0; q < nbad; q++) {
+            uint32_t v = todo[q];
             for (uint32_t a = start[v]; a < start[v + 1]; a++) {
                 uint32_t t = corner[a] / 3;
                 if (!alive[t])
@@ -2870,7 +2875,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
             count++;
         }
     }
-    if ((st = single_fans(s->n, tri, &count, touched)))
+    if ((st = tsl_single_fans(s->n, tri, &count, touched)))
         goto done;
     /* Components (edge-connected: every vertex has a single fan). */
     for (size_t i = 0; i < s->n; i++)
@@ -3036,7 +3041,7 @@ static tessel_status place_start(af *s, const uint32_t *start, size_t count)
     memcpy(tri, start, 3 * count * sizeof *tri);
     for (size_t c = 0; c < 3 * count; c++)
         touched[tri[c]] = 1;
-    if ((st = single_fans(s->n, tri, &count, touched)))
+    if ((st = tsl_single_fans(s->n, tri, &count, touched)))
         goto done;
     st = import_mesh(s, tri, count, NULL, NULL);
 done:

@@ -169,6 +169,12 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
                                         const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                         tessel_front_stats *stats);
 
+/* Removes the triangles (tri[3 i ..], *count of them, consistently
+ * oriented, over n vertices) at every vertex with more than one fan, until
+ * none is left, keeping the rest in order; only vertices flagged in touched
+ * (cleared on return) can have one (src/advancing_front.c). */
+tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched);
+
 /* tsl_advancing_front_lines from a starting mesh: start_count triangles
  * (3 ids into points each, consistently oriented, no two crossing, as a
  * front's output less some triangles). Triangles at vertices the removal
@@ -189,6 +195,10 @@ tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *
  * are the same for any thread count. */
 tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri, size_t nt,
                                int threads, uint8_t *mark, size_t *flipped);
+/* The check's verdict applied: the triangles marked 1 turned, those
+ * marked 2 left out, the rest copied; out may be tri. Returns how many
+ * triangles out holds. */
+size_t tsl_orient_apply(const uint32_t *tri, size_t nt, const uint8_t *mark, uint32_t *out);
 
 /* ---- the projector's own index (src/smooth.c), shared by the stages
  * that search the same cloud ---- */

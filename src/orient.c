@@ -398,3 +398,19 @@ done:
     free(sum);
     return st;
 }
+
+size_t tsl_orient_apply(const uint32_t *tri, size_t nt, const uint8_t *mark, uint32_t *out)
+{
+    size_t kept = 0;
+    for (size_t t = 0; t < nt; t++) {
+        if (mark[t] == 2)
+            continue;
+        /* Read before writing: out[kept] may be tri[t] or before it. */
+        uint32_t a = tri[3 * t], b = tri[3 * t + 1], c = tri[3 * t + 2];
+        uint32_t *w = out + 3 * kept++;
+        w[0] = a;
+        w[1] = mark[t] ? c : b;
+        w[2] = mark[t] ? b : c;
+    }
+    return kept;
+}

@@ -422,7 +422,7 @@ static tessel_status repair_orientation(tessel_mesh *mesh, const tessel_cloud *r
                                         const tessel_callbacks *callbacks,
                                         tessel_front_stats *stats, size_t *turned)
 {
-    size_t nt = mesh->triangle_count, flipped = 0, kept = 0;
+    size_t nt = mesh->triangle_count, flipped = 0;
     uint8_t *mark = tsl_alloc_array(nt + 1, sizeof *mark);
     uint32_t *start = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
@@ -436,15 +436,7 @@ static tessel_status repair_orientation(tessel_mesh *mesh, const tessel_cloud *r
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
-    for (size_t t = 0; t < nt; t++) {
-        const uint32_t *v = mesh->triangles + 3 * t;
-        if (mark[t] == 2)
-            continue;
-        uint32_t *w = start + 3 * kept++;
-        w[0] = v[0];
-        w[1] = mark[t] ? v[2] : v[1];
-        w[2] = mark[t] ? v[1] : v[2];
-    }
+    size_t kept = tsl_orient_apply(mesh->triangles, nt, mark, start);
     tessel_mesh other;
     tessel_front_stats fs;
     if ((st = tsl_advancing_front_from(reps, lines, front, start, kept, callbacks, &other, &fs)))
