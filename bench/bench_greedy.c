@@ -5,9 +5,10 @@
  * process, so its peak memory is its own. Triangles stream into the mesh
  * writer and a PLY file (--write DIR; the default), as `tessel
  * reconstruct` does, or into a counting sink (--count). By default the
- * triangles are held for the orientation check (src/greedy_orient.c), as
- * `tessel reconstruct` does; --stream sends them on as they are final
- * (`tessel reconstruct --stream`). The check's rays use OpenMP's threads:
+ * triangles are held for the orientation check and the diagonal flips
+ * (src/greedy_held.c), as `tessel reconstruct` does; --stream sends them on
+ * as they are final (`tessel reconstruct --stream`). The check's rays use
+ * OpenMP's threads:
  * OMP_NUM_THREADS=1 keeps the whole run on one core.
  *
  * Prints for each input: triangles, boundary edges, components, points
@@ -52,7 +53,7 @@ static tessel_status count_sink(void *user, const uint32_t *t, size_t n)
 typedef struct options {
     const char *write_dir; /* NULL: count only */
     double mu;
-    int stream;            /* no orientation check */
+    int stream;            /* no orientation check, no flips */
 } options;
 
 /* One reconstruction and one line of output. */
@@ -62,6 +63,7 @@ static int measure(const tessel_cloud *cloud, const options *o, const char *what
     if (o->mu > 0)
         p.mu = o->mu;
     p.orient_check = !o->stream;
+    p.flip = !o->stream;
     size_t input = cloud->count * 12 + (cloud->normals ? cloud->count * 12 : 0);
     counter c = {0, 0};
     tessel_triangle_sink sink = {count_sink, &c};
@@ -102,7 +104,7 @@ static int measure(const tessel_cloud *cloud, const options *o, const char *what
            cloud->count - sum.points_used, t, n / t, n / ct, sum.peak_held_triangles,
            (double)rss / n, rss > input ? (double)(rss - input) / n : 0.0,
            w ? "" : "  [count sink]");
-    printf("  %s", o->stream ? "[streamed]" : "[held, checked]");
+    printf("  %s", o->stream ? "[streamed]" : "[held, checked, flipped]");
     if (w)
         printf("  write %.2f s", tw);
     printf("\n");

@@ -1092,6 +1092,7 @@ tessel_greedy_params tessel_greedy_params_default(void)
     p.existing = NULL;
     p.existing_count = 0;
     p.orient_check = 1;
+    p.flip = 1;
     return p;
 }
 
@@ -1174,7 +1175,8 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
         !(p.min_angle >= 0.0 && p.min_angle <= 45.0) ||
         !(p.max_spacing >= 1.0 && p.max_spacing <= 1000.0) || p.max_hole > 1000 ||
         (p.plane != TESSEL_GREEDY_PLANE_PCA && p.plane != TESSEL_GREEDY_PLANE_AXIS) ||
-        (p.existing_count && !p.existing) || (p.orient_check != 0 && p.orient_check != 1))
+        (p.existing_count && !p.existing) || (p.orient_check != 0 && p.orient_check != 1) ||
+        (p.flip != 0 && p.flip != 1))
         return TESSEL_ERR_INVALID_ARG;
     if (cloud->count >= NONE)
         return TESSEL_ERR_LIMIT;
@@ -1183,10 +1185,13 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
     tessel_recon_summary sum;
     memset(&sum, 0, sizeof sum);
     /* Input normals or a viewpoint decide the side already; with existing
-     * triangles the caller holds the mesh, and checks it whole. */
+     * triangles the caller holds the mesh, and checks it whole (and their
+     * edges are not ours to flip). */
+    bool check = p.orient_check && !cloud->normals && !cloud->has_viewpoint && !p.existing_count;
+    p.flip = p.flip && !p.existing_count;
     tessel_status s;
-    if (p.orient_check && !cloud->normals && !cloud->has_viewpoint && !p.existing_count)
-        s = tsl_gp_oriented(cloud, &p, callbacks, sink, &sum);
+    if (check || p.flip)
+        s = tsl_gp_held(cloud, &p, check, callbacks, sink, &sum);
     else
         s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, &sum);
     if (s != TESSEL_OK)

@@ -1,9 +1,10 @@
 /* Private declarations of the greedy projection reconstruction (Gopi &
- * Krishnan 2002), shared by its three files:
+ * Krishnan 2002), shared by its four files:
  *   src/greedy.c        reference points, seeds, the main loop, the API
  *   src/greedy_store.c  dexel array, triangle pool, fans, retirement, set-up
  *   src/greedy_guard.c  exact intersection tests, the free-cone certificate
- *   src/greedy_orient.c regions meshed inside out, found and rebuilt
+ *   src/greedy_held.c   with the whole mesh held: regions meshed inside out
+ *                       found and rebuilt, diagonal flips
  * Not installed. */
 #ifndef TESSEL_GREEDY_INTERNAL_H
 #define TESSEL_GREEDY_INTERNAL_H
@@ -377,14 +378,15 @@ typedef struct gp_collect {
 } gp_collect;
 tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count);
 
-/* ---- src/greedy_orient.c ---- */
+/* ---- src/greedy_held.c ---- */
 
-/* The pass with every triangle held, checked by ray parity (src/orient.c),
- * regions meshed inside out rebuilt by a second pass, then all sent to
+/* The pass with every triangle held; then, when check, regions meshed
+ * inside out found by ray parity (src/orient.c) and rebuilt by a second
+ * pass; then, when params->flip, the diagonal flips; then all sent to
  * sink. */
-tessel_status tsl_gp_oriented(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                              const tessel_callbacks *callbacks,
-                              const tessel_triangle_sink *sink, tessel_recon_summary *summary);
+tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                          bool check, const tessel_callbacks *callbacks,
+                          const tessel_triangle_sink *sink, tessel_recon_summary *summary);
 
 /* ---- src/greedy_store.c ---- */
 

@@ -169,6 +169,18 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
                                         const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                         tessel_front_stats *stats);
 
+/* Flips, in place, the diagonal of every pair of triangles whose angles
+ * opposite it add up to more than pi (the Delaunay rule, which raises the
+ * pair's smallest angle), pass after pass, with the refinement's checks
+ * (src/refine.c): each flip kept only if the new edge is not there
+ * already, neither new triangle turns more than 60 degrees from the pair's
+ * normal and neither meets the mesh beyond shared vertices and edges
+ * (exact). tri (nt triangles over the points xyz, nv of them) must be
+ * manifold and consistently oriented; the triangles keep their slots.
+ * *flips: the diagonals flipped. */
+tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
+                                 size_t *flips);
+
 /* Removes the triangles (tri[3 i ..], *count of them, consistently
  * oriented, over n vertices) at every vertex with more than one fan, until
  * none is left, keeping the rest in order; only vertices flagged in touched

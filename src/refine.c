@@ -55,7 +55,9 @@ typedef struct edge_map {
 } edge_map;
 
 typedef struct rf {
-    float *xyz;
+    const float *xyz; /* the vertices: xyz_own, or the caller's points when
+                         only flipping (tsl_flip_diagonals never splits) */
+    float *xyz_own;   /* the refinement's own copy, which grows */
     uint8_t *rgb; /* NULL when the mesh has no colours */
     size_t nv, cap_v;
     uint32_t *tri;  /* 3 per triangle */
@@ -65,6 +67,7 @@ typedef struct rf {
     edge_map edges;
     tsl_trigrid grid;
     double cos_turn;
+    bool delaunay; /* the flip rule: see flip_edge */
     /* The previous round's fits: edge -> index into fit_sum (3 floats per
      * edge, the sum over its midpoint's k nearest cloud points of p - m).
      * Vertices never move, so an edge that survives a round keeps its
@@ -433,9 +436,10 @@ static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
         return TESSEL_ERR_LIMIT;
     if (r->nv + more_v > r->cap_v) {
         size_t c1 = r->cap_v, c2 = r->cap_v;
-        if (grow((void **)&r->xyz, &c1, r->nv + more_v, 3 * sizeof *r->xyz) ||
+        if (grow((void **)&r->xyz_own, &c1, r->nv + more_v, 3 * sizeof *r->xyz_own) ||
             (r->rgb && grow((void **)&r->rgb, &c2, r->nv + more_v, 3)))
             return TESSEL_ERR_NOMEM;
+        r->xyz = r->xyz_own;
         r->cap_v = r->rgb && c2 < c1 ? c2 : c1;
     }
     if (r->nt + more_t > r->cap_t) {
@@ -547,7 +551,7 @@ static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3
 
     uint32_t m = (uint32_t)r->nv++;
     for (int c = 0; c < 3; c++)
-        r->xyz[3 * (size_t)m + c] = pos[c];
+        r->xyz_own[3 * (size_t)m + c] = pos[c];
     if (r->rgb)
         for (int c = 0; c < 3; c++)
             r->rgb[3 * (size_t)m + c] = (uint8_t)((r->rgb[3 * (size_t)u + c] +
@@ -629,8 +633,27 @@ static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3
     return TESSEL_OK;
 }
 
-/* Flips the diagonal {u, v} of its two triangles when the other diagonal
- * is shorter and the result is valid. *again: refused for a reason outside
+/* The angles opposite the diagonal {u, v}, at a and at b, add up to more
+ * than pi: cot A + cot B < 0, with cot at o = (e1 . e2) / |e1 x e2|,
+ * compared multiplied out (no division by a zero area). The pair is then
+ * not locally Delaunay, and the other diagonal raises its smallest angle. */
+static bool opposite_angles_over_pi(const double pu[3], const double pv[3], const double pa[3],
+                                    const double pb[3])
+{
+    double e1[3], e2[3], e3[3], e4[3], ca[3], cb[3];
+    tsl_sub(pu, pa, e1);
+    tsl_sub(pv, pa, e2);
+    tsl_sub(pu, pb, e3);
+    tsl_sub(pv, pb, e4);
+    tsl_cross(e1, e2, ca);
+    tsl_cross(e3, e4, cb);
+    double sa = tsl_norm(ca), sb = tsl_norm(cb);
+    return tsl_dot(e1, e2) * sb + tsl_dot(e3, e4) * sa < -1e-9 * sa * sb;
+}
+
+/* Flips the diagonal {u, v} of its two triangles when the rule asks for it
+ * (r->delaunay: the opposite angles add up to more than pi; else the
+ * paper's: the other diagonal is shorter) and the result is valid. *again: refused for a reason outside
  * the two triangles (the other diagonal exists, or the flip would cut the
  * mesh), so a later pass must look at it again even if they stay as they
  * are. */
@@ -653,9 +676,10 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
     vtx(r, b, pb);
     tsl_sub(pv, pu, d1);
     tsl_sub(pb, pa, d2);
-    /* The paper's rule, with a margin so that no edge flips back and forth;
-     * then the edge map (a cache miss on large meshes: last). */
-    if (!(tsl_dot(d2, d2) < (1.0 - 1e-6) * tsl_dot(d1, d1)))
+    /* The rule, with a margin so that no edge flips back and forth; then
+     * the edge map (a cache miss on large meshes: last). */
+    if (r->delaunay ? !opposite_angles_over_pi(pu, pv, pa, pb)
+                    : !(tsl_dot(d2, d2) < (1.0 - 1e-6) * tsl_dot(d1, d1)))
         return TESSEL_OK;
     *again = true;
     if (map_get(&r->edges, a, b) != NONE)
@@ -803,15 +827,18 @@ static tessel_status vertex_normals(const rf *r, double **out)
 }
 
 /* A fresh grid for the round, with cells two mean edges wide: the edges
- * shrink from round to round. */
+ * shrink from round to round. It boxes the triangles, not every vertex: a
+ * point no triangle uses (an outlier the front left out) must not stretch
+ * the cells. */
 static tessel_status build_grid(rf *r)
 {
     tsl_trigrid_free(&r->grid);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t v = 0; v < r->nv; v++)
+    for (size_t i = 0; i < 3 * r->nt; i++)
         for (int k = 0; k < 3; k++) {
-            lo[k] = r->xyz[3 * v + k] < lo[k] ? r->xyz[3 * v + k] : lo[k];
-            hi[k] = r->xyz[3 * v + k] > hi[k] ? r->xyz[3 * v + k] : hi[k];
+            float x = r->xyz[3 * (size_t)r->tri[i] + k];
+            lo[k] = x < lo[k] ? x : lo[k];
+            hi[k] = x > hi[k] ? x : hi[k];
         }
     double mean_len = 0.0;
     for (size_t t = 0; t < r->nt; t++) {
@@ -1062,15 +1089,15 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
     r.cap_v = r.nv + 16;
     r.cap_t = r.nt + 16;
     r.cos_turn = cos(MAX_TURN_DEG * acos(-1.0) / 180.0);
-    r.xyz = tsl_alloc_array(3 * r.cap_v, sizeof *r.xyz);
+    r.xyz = r.xyz_own = tsl_alloc_array(3 * r.cap_v, sizeof *r.xyz_own);
     r.rgb = mesh->rgb ? tsl_alloc_array(3 * r.cap_v, 1) : NULL;
     r.tri = tsl_alloc_array(3 * r.cap_t, sizeof *r.tri);
     r.twin = tsl_alloc_array(3 * r.cap_t, sizeof *r.twin);
     r.box = tsl_alloc_array(6 * r.cap_t, sizeof *r.box);
     st = TESSEL_ERR_NOMEM;
-    if (!r.xyz || !r.tri || !r.twin || !r.box || (mesh->rgb && !r.rgb))
+    if (!r.xyz_own || !r.tri || !r.twin || !r.box || (mesh->rgb && !r.rgb))
         goto done;
-    memcpy(r.xyz, mesh->xyz, 3 * r.nv * sizeof *r.xyz);
+    memcpy(r.xyz_own, mesh->xyz, 3 * r.nv * sizeof *r.xyz_own);
     if (r.rgb)
         memcpy(r.rgb, mesh->rgb, 3 * r.nv);
     memcpy(r.tri, mesh->triangles, 3 * r.nt * sizeof *r.tri);
@@ -1135,7 +1162,7 @@ done:
         *stats = r.stats;
     tessel_index_destroy(own_index);
     tessel_projector_destroy(own);
-    free(r.xyz);
+    free(r.xyz_own);
     free(r.rgb);
     free(r.tri);
     free(r.twin);
@@ -1143,6 +1170,35 @@ done:
     map_free(&r.edges);
     map_free(&r.fit_of);
     free(r.fit_sum);
+    tsl_trigrid_free(&r.grid);
+    return st;
+}
+
+tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
+                                 size_t *flips)
+{
+    *flips = 0;
+    if (nv >= UINT32_MAX || nt >= UINT32_MAX / 3)
+        return TESSEL_ERR_LIMIT;
+    if (nt == 0)
+        return TESSEL_OK;
+    rf r;
+    memset(&r, 0, sizeof r);
+    r.xyz = xyz;
+    r.nv = nv;
+    r.tri = tri;
+    r.nt = r.cap_t = nt;
+    r.cos_turn = cos(MAX_TURN_DEG * acos(-1.0) / 180.0);
+    r.delaunay = true;
+    r.twin = tsl_alloc_array(3 * nt, sizeof *r.twin);
+    r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (r.twin && r.box && !(st = build_topology(&r)) && !(st = build_grid(&r)))
+        st = flip_passes(&r);
+    *flips = r.stats.flips;
+    free(r.twin);
+    free(r.box);
+    map_free(&r.edges);
     tsl_trigrid_free(&r.grid);
     return st;
 }

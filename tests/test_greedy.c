@@ -322,14 +322,21 @@ static void test_options(void)
     tessel_mesh_report r = recon("torus, axis planes", &c, &p, &m, &sum);
     CHECK(r.boundary_edges * 100 <= r.edges); /* mostly closed */
     tessel_mesh_free(&m);
-    /* The angle criterion drops skinny neighbours: smaller angles grow. */
+    /* The angle criterion drops skinny neighbours: smaller angles grow (on
+     * the front's own triangles, before any flip). */
+    tessel_mesh_free(&m0);
     p = tessel_greedy_params_default();
+    p.flip = 0;
+    r0 = recon("torus, no flips", &c, &p, &m0, &sum);
     p.min_angle = 15.0;
     r = recon("torus, min angle 15", &c, &p, &m, &sum);
     CHECK_MSG(r.mean_min_angle_deg > r0.mean_min_angle_deg, "%g vs %g", r.mean_min_angle_deg,
               r0.mean_min_angle_deg);
     tessel_mesh_free(&m);
     tessel_mesh_free(&m0);
+    p = tessel_greedy_params_default();
+    p.flip = 2;
+    CHECK(tessel_reconstruct_greedy_mesh(&c, &p, NULL, &m, &sum) == TESSEL_ERR_INVALID_ARG);
     p = tessel_greedy_params_default();
     p.orient_check = 2;
     CHECK(tessel_reconstruct_greedy_mesh(&c, &p, NULL, &m, &sum) == TESSEL_ERR_INVALID_ARG);
@@ -427,6 +434,7 @@ static void test_streaming(void)
     free(c.normals);
     c.normals = NULL;
     tessel_greedy_params p = tessel_greedy_params_default();
+    p.flip = 0;
     sink_buf held = {0};
     tessel_triangle_sink hs = {sink_emit, &held};
     tessel_recon_summary hsum;
@@ -466,6 +474,103 @@ static void test_streaming(void)
 /* Two spheres closer than the sampling: the front steps from one onto the
  * other and carries the wrong side across. The orientation check finds
  * the region, and the repair turns it and meshes the seams again. */
+/* Interior edges whose two opposite angles add up to more than pi by a
+ * clear margin (not locally Delaunay), counted over the half-edge pairs. */
+typedef struct half_edge {
+    uint32_t lo, hi, opposite;
+} half_edge;
+
+static int cmp_half_edge(const void *pa, const void *pb)
+{
+    const half_edge *a = pa, *b = pb;
+    if (a->lo != b->lo)
+        return a->lo < b->lo ? -1 : 1;
+    return a->hi < b->hi ? -1 : (a->hi > b->hi);
+}
+
+static double angle_at(const float *o, const float *x, const float *y)
+{
+    double e1[3], e2[3], c[3];
+    for (int k = 0; k < 3; k++) {
+        e1[k] = (double)x[k] - o[k];
+        e2[k] = (double)y[k] - o[k];
+    }
+    c[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    c[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+                 e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]);
+}
+
+static size_t non_delaunay_edges(const tessel_mesh *m, size_t *interior)
+{
+    size_t nh = 3 * m->triangle_count, bad = 0;
+    half_edge *h = malloc(nh * sizeof *h);
+    CHECK(h != NULL);
+    if (!h)
+        return 0;
+    for (size_t i = 0; i < nh; i++) {
+        uint32_t a = m->triangles[i], b = m->triangles[i - i % 3 + (i + 1) % 3];
+        h[i].lo = a < b ? a : b;
+        h[i].hi = a < b ? b : a;
+        h[i].opposite = m->triangles[i - i % 3 + (i + 2) % 3];
+    }
+    qsort(h, nh, sizeof *h, cmp_half_edge);
+    *interior = 0;
+    for (size_t i = 0; i + 1 < nh; i++) {
+        if (cmp_half_edge(&h[i], &h[i + 1]) != 0)
+            continue;
+        const float *u = m->xyz + 3 * (size_t)h[i].lo, *v = m->xyz + 3 * (size_t)h[i].hi;
+        double sum = angle_at(m->xyz + 3 * (size_t)h[i].opposite, u, v) +
+                     angle_at(m->xyz + 3 * (size_t)h[i + 1].opposite, u, v);
+        bad += sum > 3.14159265358979323846 + 1e-3;
+        ++*interior;
+        i++;
+    }
+    free(h);
+    return bad;
+}
+
+/* The diagonal flips (params.flip, the default): the same points, the same
+ * number of triangles, the same boundary and components, a valid mesh
+ * (recon), and almost every interior edge locally Delaunay where the
+ * front's own triangles leave many that are not; an open surface keeps its
+ * border. */
+static void test_flips(void)
+{
+    tessel_cloud clouds[3];
+    const char *names[3] = {"uneven sphere", "torus", "plane with a hole"};
+    CHECK(surf_sphere_varying(&clouds[0], 0.04, 0.12, 23) == TESSEL_OK);
+    CHECK(surf_torus(&clouds[1], 1.0, 0.35, 0.05, 12) == TESSEL_OK);
+    CHECK(surf_plane_hole(&clouds[2], 0.08, 13) == TESSEL_OK);
+    for (int i = 0; i < 3; i++) {
+        tessel_greedy_params p = tessel_greedy_params_default();
+        p.flip = 0;
+        tessel_mesh m0, m1;
+        tessel_recon_summary s0, s1;
+        tessel_mesh_report r0 = recon(names[i], &clouds[i], &p, &m0, &s0);
+        p.flip = 1;
+        tessel_mesh_report r1 = recon(names[i], &clouds[i], &p, &m1, &s1);
+        size_t in0, in1;
+        size_t bad0 = non_delaunay_edges(&m0, &in0), bad1 = non_delaunay_edges(&m1, &in1);
+        printf("%-22s flips %zu: not Delaunay %zu of %zu interior edges -> %zu; mean smallest "
+               "angle %.1f -> %.1f deg, largest %.1f -> %.1f deg\n",
+               names[i], s1.flips, bad0, in0, bad1, r0.mean_min_angle_deg,
+               r1.mean_min_angle_deg, r0.max_angle_deg, r1.max_angle_deg);
+        CHECK(s0.flips == 0 && s1.flips > 0);
+        CHECK(m0.vertex_count == m1.vertex_count &&
+              memcmp(m0.xyz, m1.xyz, 3 * m0.vertex_count * sizeof *m0.xyz) == 0);
+        CHECK(r1.triangles == r0.triangles && r1.boundary_edges == r0.boundary_edges &&
+              r1.components == r0.components && r1.euler == r0.euler);
+        CHECK_MSG(bad0 * 20 > in0 && bad1 * 200 < in1, "%s: %zu -> %zu of %zu", names[i], bad0,
+                  bad1, in1);
+        CHECK(r1.mean_min_angle_deg > r0.mean_min_angle_deg + 2.0);
+        tessel_mesh_free(&m0);
+        tessel_mesh_free(&m1);
+        tessel_cloud_free(&clouds[i]);
+    }
+}
+
 static void test_touching_spheres(void)
 {
     const double gap = 0.02;
@@ -527,12 +632,22 @@ static void test_cli(void)
     tessel_mesh_report rep = check_mesh(&m);
     CHECK(tessel_mesh_report_valid(&rep) && m.triangle_count > c.count);
     tessel_mesh_free(&m);
-    snprintf(args, sizeof args, "%s %s --stream --quiet", in, out);
+    snprintf(args, sizeof args, "%s %s --quiet", in, out);
     CHECK(run_cli(args) == 0);
     CHECK(tessel_mesh_read(&m, out, NULL, NULL) == TESSEL_OK);
-    rep = check_mesh(&m);
-    CHECK(tessel_mesh_report_valid(&rep) && m.triangle_count > c.count);
+    tessel_mesh_report flipped = check_mesh(&m);
     tessel_mesh_free(&m);
+    const char *unflipped[2] = {"--stream", "--no-flip"};
+    for (int i = 0; i < 2; i++) {
+        snprintf(args, sizeof args, "%s %s %s --quiet", in, out, unflipped[i]);
+        CHECK(run_cli(args) == 0);
+        CHECK(tessel_mesh_read(&m, out, NULL, NULL) == TESSEL_OK);
+        rep = check_mesh(&m);
+        CHECK(tessel_mesh_report_valid(&rep) && m.triangle_count > c.count);
+        CHECK_MSG(rep.mean_min_angle_deg + 2.0 < flipped.mean_min_angle_deg, "%s: %g vs %g",
+                  unflipped[i], rep.mean_min_angle_deg, flipped.mean_min_angle_deg);
+        tessel_mesh_free(&m);
+    }
     snprintf(args, sizeof args, "%s %s --mu 0.5", in, out);
     CHECK(run_cli(args) == 1);
     snprintf(args, sizeof args, "%s %s --plane sideways", in, out);
@@ -554,6 +669,7 @@ int main(void)
     test_options();
     test_existing();
     test_streaming();
+    test_flips();
     test_touching_spheres();
     test_cli();
     return TEST_SUMMARY();

@@ -18,8 +18,10 @@ static const char greedy_help[] =
     "consistently oriented (counter-clockwise seen from outside on closed\n"
     "surfaces) and free of self-intersections. Without input normals or a\n"
     "viewpoint, rays then find regions meshed inside out (where two sheets\n"
-    "touch, a hand on a thigh) and those are rebuilt. Best on clean, evenly\n"
-    "sampled clouds; for noisy ones use --method smooth.\n\n"
+    "touch, a hand on a thigh) and those are rebuilt. Last, diagonals are\n"
+    "flipped where the other one is shorter, which removes most slivers.\n"
+    "Best on clean, evenly sampled clouds; for noisy ones use --method\n"
+    "smooth.\n\n"
     "Other methods:\n"
     "  --method smooth          noisy clouds (see --method smooth --help)\n"
     "  --mode height|range|grid fixed projection plane: terrain, scans from\n"
@@ -39,9 +41,12 @@ static const char greedy_help[] =
     "  --max-spacing K    no edge spans more than about 2*mu*K mean spacings;\n"
     "                     points with no neighbour within mu*K are isolated\n"
     "                     (default 4)\n"
+    "  --no-flip          keep the triangles as the front makes them (the\n"
+    "                     paper's), without the diagonal flips\n"
     "  --stream           write triangles as they are final, without the\n"
-    "                     inside-out check: memory for the points and the\n"
-    "                     front only, not the mesh (for the largest clouds)\n"
+    "                     inside-out check and the flips: memory for the\n"
+    "                     points and the front only, not the mesh (for the\n"
+    "                     largest clouds)\n"
     "  --ascii            write ascii PLY\n\n";
 
 typedef struct greedy_opts {
@@ -57,6 +62,11 @@ static int greedy_option(void *ctx, int argc, char **argv, int *i)
         return o->ascii = 1;
     if (strcmp(a, "--stream") == 0) {
         o->p.orient_check = 0;
+        o->p.flip = 0;
+        return 1;
+    }
+    if (strcmp(a, "--no-flip") == 0) {
+        o->p.flip = 0;
         return 1;
     }
     if (strcmp(a, "--mu") && strcmp(a, "--max-angle") && strcmp(a, "--min-angle") &&
@@ -150,7 +160,8 @@ static int greedy(int argc, char **argv)
                "\"left_duplicate\": %zu, \"left_isolated\": %zu, \"left_closed_in\": %zu, "
                "\"left_untriangulated\": %zu, \"triangles\": %zu, \"components\": %zu, "
                "\"boundary_edges\": %zu, \"seeds\": %zu, \"rejected_intersecting\": %zu, "
-               "\"peak_held_triangles\": %zu, \"reoriented\": %zu, \"spacing\": %.9g, "
+               "\"peak_held_triangles\": %zu, \"reoriented\": %zu, \"flips\": %zu, "
+               "\"spacing\": %.9g, "
                "\"mu\": %g, "
                "\"max_angle\": %g, \"min_angle\": %g, \"plane\": \"%s\", "
                "\"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
@@ -158,7 +169,7 @@ static int greedy(int argc, char **argv)
                n, sum.points_used, sum.left_duplicate, sum.left_isolated, sum.left_closed_in,
                sum.left_untriangulated, sum.triangles, sum.components, sum.boundary_edges,
                sum.seeds, sum.rejected_intersecting, sum.peak_held_triangles, sum.reoriented,
-               sum.spacing,
+               sum.flips, sum.spacing,
                o.p.mu, o.p.max_angle, o.p.min_angle,
                o.p.plane == TESSEL_GREEDY_PLANE_AXIS ? "axis" : "pca", t_read, sum.seconds,
                t_write, seconds, rate);
@@ -166,9 +177,10 @@ static int greedy(int argc, char **argv)
         size_t left = n - sum.points_used;
         fprintf(stderr,
                 "tessel: greedy: %zu of %zu points used, %zu triangles, %zu component%s, "
-                "%zu boundary edges (mu %g, spacing %.4g)\n",
+                "%zu boundary edges, %zu diagonals flipped (mu %g, spacing %.4g)\n",
                 sum.points_used, n, sum.triangles, sum.components,
-                sum.components == 1 ? "" : "s", sum.boundary_edges, o.p.mu, sum.spacing);
+                sum.components == 1 ? "" : "s", sum.boundary_edges, sum.flips, o.p.mu,
+                sum.spacing);
         if (left)
             fprintf(stderr,
                     "tessel: %zu points left out: %zu duplicates, %zu isolated, %zu enclosed "
