@@ -495,6 +495,104 @@ static tessel_status build_topology(rf *r)
     return TESSEL_OK;
 }
 
+static inline uint32_t he_next(uint32_t h) { return h - h % 3 + (h % 3 + 1) % 3; }
+static inline uint32_t he_prev(uint32_t h) { return h - h % 3 + (h % 3 + 2) % 3; }
+
+/* Whether the edge {a, b} exists, h being a half-edge leaving a: walks a's
+ * fan (one fan: the mesh is vertex-manifold) one way to the end or all
+ * round, then the other way. Used instead of the edge map when only
+ * flipping. */
+static bool edge_exists(const rf *r, uint32_t h, uint32_t b)
+{
+    uint32_t e = h;
+    do {
+        if (he_to(r, e) == b || he_from(r, he_prev(e)) == b)
+            return true;
+        e = r->twin[he_prev(e)];
+    } while (e != NONE && e != h);
+    if (e == h)
+        return false;
+    for (e = r->twin[h]; e != NONE; e = r->twin[e]) {
+        e = he_next(e);
+        if (he_to(r, e) == b || he_from(r, he_prev(e)) == b)
+            return true;
+    }
+    return false;
+}
+
+/* Twins without an edge map, vertex by vertex from its corners: corner c
+ * at a is the half-edge a -> x (x = he_to) and follows y -> a (y the
+ * source of he_prev(c)); the twin of a -> x is he_prev of the corner whose
+ * y is x. INVALID_ARG for a triangle with a repeated or bad vertex, an
+ * edge run twice the same way or in more than two triangles, and a vertex
+ * with more than one fan (edge_exists needs one). */
+static tessel_status build_twins(rf *r)
+{
+    size_t nh = 3 * r->nt;
+    for (size_t h = 0; h < nh; h++) {
+        const uint32_t *v = r->tri + h - h % 3;
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2] || r->tri[h] >= r->nv)
+            return TESSEL_ERR_INVALID_ARG;
+    }
+    uint32_t *start, *corner, *out = NULL, *in = NULL, *next = NULL;
+    tessel_status st = tsl_vertex_corners(r->tri, r->nt, r->nv, &start, &corner);
+    if (st)
+        return st;
+    uint32_t most = 0;
+    for (size_t v = 0; v < r->nv; v++)
+        most = start[v + 1] - start[v] > most ? start[v + 1] - start[v] : most;
+    out = tsl_alloc_array(most, sizeof *out);
+    in = tsl_alloc_array(most, sizeof *in);
+    next = tsl_alloc_array(most, sizeof *next);
+    if (!out || !in || !next)
+        st = TESSEL_ERR_NOMEM;
+    for (size_t v = 0; v < r->nv && !st; v++) {
+        const uint32_t *c = corner + start[v];
+        uint32_t n = start[v + 1] - start[v];
+        for (uint32_t k = 0; k < n; k++) {
+            out[k] = he_to(r, c[k]);
+            in[k] = he_from(r, he_prev(c[k]));
+        }
+        /* next[k]: the corner across the edge v -> out[k], NONE on the
+         * border. */
+        for (uint32_t k = 0; k < n; k++) {
+            next[k] = NONE;
+            for (uint32_t j = 0; j < n; j++) {
+                if (j != k && out[j] == out[k])
+                    st = TESSEL_ERR_INVALID_ARG;
+                if (in[j] == out[k]) {
+                    if (next[k] != NONE)
+                        st = TESSEL_ERR_INVALID_ARG;
+                    next[k] = j;
+                }
+            }
+            r->twin[c[k]] = next[k] == NONE ? NONE : he_prev(c[next[k]]);
+        }
+        /* One fan: from the corner no other corner leads to (a border), or
+         * from any corner when the fan is closed, the walk meets all n (in
+         * now flags the corners some corner leads to). */
+        for (uint32_t k = 0; k < n; k++)
+            in[k] = 0;
+        for (uint32_t k = 0; k < n; k++)
+            if (next[k] != NONE)
+                in[next[k]] = 1;
+        uint32_t first = 0, seen = 0;
+        for (uint32_t k = 0; k < n; k++)
+            if (!in[k])
+                first = k;
+        for (uint32_t k = first; k != NONE && seen <= n; k = next[k] == first ? NONE : next[k])
+            seen++;
+        if (n && seen != n)
+            st = TESSEL_ERR_INVALID_ARG;
+    }
+    free(out);
+    free(in);
+    free(next);
+    free(start);
+    free(corner);
+    return st;
+}
+
 /* ------------------------------------------------------------------------ */
 /* Split and flip                                                            */
 /* ------------------------------------------------------------------------ */
@@ -682,7 +780,8 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
                     : !(tsl_dot(d2, d2) < (1.0 - 1e-6) * tsl_dot(d1, d1)))
         return TESSEL_OK;
     *again = true;
-    if (map_get(&r->edges, a, b) != NONE)
+    if (r->edges.keys ? map_get(&r->edges, a, b) != NONE
+                      : edge_exists(r, 3 * T1 + (i + 2) % 3, b))
         return TESSEL_OK;
     double n1[3], n2[3], avg[3];
     tri_cross(r, T1, n1);
@@ -726,10 +825,15 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
         return TESSEL_OK;
     }
     tessel_status st;
-    map_del(&r->edges, u, v);
-    if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) || (st = map_put(&r->edges, u, b, 3 * T1)) ||
-        (st = map_put(&r->edges, a, u, 3 * T1 + 2)) || (st = map_put(&r->edges, v, a, 3 * T2)) ||
-        (st = map_put(&r->edges, b, v, 3 * T2 + 2)) || (st = grid_add(r, T1)) ||
+    if (r->edges.keys) {
+        map_del(&r->edges, u, v);
+        if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) ||
+            (st = map_put(&r->edges, u, b, 3 * T1)) ||
+            (st = map_put(&r->edges, a, u, 3 * T1 + 2)) ||
+            (st = map_put(&r->edges, v, a, 3 * T2)) || (st = map_put(&r->edges, b, v, 3 * T2 + 2)))
+            return st;
+    }
+    if ((st = grid_add(r, T1)) ||
         (st = grid_add(r, T2)))
         return st;
     r->stats.flips++;
@@ -1193,7 +1297,7 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     r.twin = tsl_alloc_array(3 * nt, sizeof *r.twin);
     r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (r.twin && r.box && !(st = build_topology(&r)) && !(st = build_grid(&r)))
+    if (r.twin && r.box && !(st = build_twins(&r)) && !(st = build_grid(&r)))
         st = flip_passes(&r);
     *flips = r.stats.flips;
     free(r.twin);

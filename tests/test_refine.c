@@ -7,6 +7,7 @@
  * torus come out closed with the right genus and outward; a plane with a
  * hole keeps its two borders; two close parallel sheets stay two
  * components. */
+#include "internal.h"
 #include "test.h"
 
 #include "surfaces.h"
@@ -483,8 +484,48 @@ static void test_pipeline_touching_spheres(void)
     tessel_cloud_free(&c);
 }
 
+/* tsl_flip_diagonals, the flips greedy uses: a flat square split along
+ * its longer diagonal turns to the other (whose opposite angles are right
+ * angles, no flip); a folded pair stays; invalid inputs are refused. */
+static void test_flip_diagonals(void)
+{
+    /* Rhombus 0 (0,0) 1 (2,0) 2 (3,1) 3 (1,1) split along 0-2 (angles at
+     * 1 and 3 are 135 degrees: not Delaunay). Plus a far point 4 that no
+     * triangle uses. */
+    const float xyz[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0, 100, 100, 100};
+    uint32_t tri[6] = {0, 1, 2, 0, 2, 3};
+    size_t flips = 0;
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK);
+    CHECK(flips == 1);
+    bool has13[2] = {false, false};
+    for (int t = 0; t < 2; t++)
+        for (int i = 0; i < 3; i++) {
+            uint32_t a = tri[3 * t + i], b = tri[3 * t + (i + 1) % 3];
+            has13[t] |= (a == 1 && b == 3) || (a == 3 && b == 1);
+        }
+    CHECK(has13[0] && has13[1]);
+    /* Flipping again changes nothing: the pair is Delaunay now. */
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK && flips == 0);
+    /* The same rhombus folded by 90 degrees along 0-2 would turn too far. */
+    const float folded[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1.5f, 0.5f, 1.2f};
+    uint32_t ft[6] = {0, 1, 2, 0, 2, 3};
+    CHECK(tsl_flip_diagonals(folded, 4, ft, 2, &flips) == TESSEL_OK && flips == 0);
+    /* Two fans at vertex 0 (a bow tie), an edge in three triangles, an edge
+     * run twice the same way, a bad index. */
+    const float six[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0, 0, 0, 1};
+    uint32_t bowtie[6] = {0, 1, 2, 0, 3, 4};
+    uint32_t three[9] = {0, 1, 2, 1, 0, 3, 1, 0, 4};
+    uint32_t same_way[6] = {0, 1, 2, 0, 1, 3};
+    uint32_t bad[3] = {0, 1, 6};
+    CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, three, 3, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, same_way, 2, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, bad, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+}
+
 int main(void)
 {
+    test_flip_diagonals();
     test_refine_sphere();
     test_refine_rounds();
     test_refine_plane();
