@@ -485,8 +485,8 @@ static void test_pipeline_touching_spheres(void)
 }
 
 /* tsl_flip_diagonals, the flips greedy uses: a flat square split along
- * its longer diagonal turns to the other (whose opposite angles are right
- * angles, no flip); a folded pair stays; invalid inputs are refused. */
+ * its longer diagonal turns to the other, and stays so; a flip that would
+ * meet another triangle is refused; invalid inputs are refused. */
 static void test_flip_diagonals(void)
 {
     /* Rhombus 0 (0,0) 1 (2,0) 2 (3,1) 3 (1,1) split along 0-2 (angles at
@@ -506,10 +506,15 @@ static void test_flip_diagonals(void)
     CHECK(has13[0] && has13[1]);
     /* Flipping again changes nothing: the pair is Delaunay now. */
     CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK && flips == 0);
-    /* The same rhombus folded by 90 degrees along 0-2 would turn too far. */
-    const float folded[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1.5f, 0.5f, 1.2f};
-    uint32_t ft[6] = {0, 1, 2, 0, 2, 3};
-    CHECK(tsl_flip_diagonals(folded, 4, ft, 2, &flips) == TESSEL_OK && flips == 0);
+    /* Lifted at 3, the pair bounds a thin tetrahedron whose other two faces
+     * the flip would make; a triangle rising from inside it (touching
+     * neither old triangle) forbids the flip, which happens without it. */
+    const float lifted[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0.3f,
+                            1.5f, 0.5f, 0.075f, 1.5f, 0.5f, 5, 1.6f, 0.6f, 5};
+    uint32_t lt[9] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 3, &flips) == TESSEL_OK && flips == 0);
+    CHECK(memcmp(lt, (uint32_t[]){0, 1, 2, 0, 2, 3, 4, 5, 6}, sizeof lt) == 0);
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 2, &flips) == TESSEL_OK && flips == 1);
     /* Two fans at vertex 0 (a bow tie), an edge in three triangles, an edge
      * run twice the same way, a bad index. */
     const float six[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0, 0, 0, 1};
