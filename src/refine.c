@@ -751,10 +751,10 @@ static bool opposite_angles_over_pi(const double pu[3], const double pv[3], cons
 
 /* Flips the diagonal {u, v} of its two triangles when the rule asks for it
  * (r->delaunay: the opposite angles add up to more than pi; else the
- * paper's: the other diagonal is shorter) and the result is valid. *again: refused for a reason outside
- * the two triangles (the other diagonal exists, or the flip would cut the
- * mesh), so a later pass must look at it again even if they stay as they
- * are. */
+ * paper's: the other diagonal is shorter) and the result is valid.
+ * *again: refused for a reason outside the two triangles (the other
+ * diagonal exists, or the flip would cut the mesh), so a later pass must
+ * look at it again even if they stay as they are. */
 static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
 {
     *done = false;
