@@ -462,6 +462,18 @@ static inline void set_twin(rf *r, uint32_t h, uint32_t g)
         r->twin[g] = h;
 }
 
+/* Every triangle has three distinct vertices, all in range. */
+static bool corners_valid(const rf *r)
+{
+    for (size_t t = 0; t < r->nt; t++) {
+        const uint32_t *v = r->tri + 3 * t;
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2] || v[0] >= r->nv || v[1] >= r->nv ||
+            v[2] >= r->nv)
+            return false;
+    }
+    return true;
+}
+
 /* Builds twins and the edge map; INVALID_ARG for a non-manifold or
  * inconsistently oriented mesh or a triangle with a repeated or bad vertex.
  * The first half-edge of an edge goes into the map, the second becomes its
@@ -472,12 +484,8 @@ static tessel_status build_topology(rf *r)
     tessel_status st = map_init(&r->edges, nh);
     if (st)
         return st;
-    for (size_t t = 0; t < r->nt; t++) {
-        const uint32_t *v = r->tri + 3 * t;
-        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2] || v[0] >= r->nv || v[1] >= r->nv ||
-            v[2] >= r->nv)
-            return TESSEL_ERR_INVALID_ARG;
-    }
+    if (!corners_valid(r))
+        return TESSEL_ERR_INVALID_ARG;
     for (size_t h = 0; h < nh; h++)
         r->twin[h] = NONE;
     for (size_t h = 0; h < nh; h++) {
@@ -528,12 +536,8 @@ static bool edge_exists(const rf *r, uint32_t h, uint32_t b)
  * with more than one fan (edge_exists needs one). */
 static tessel_status build_twins(rf *r)
 {
-    size_t nh = 3 * r->nt;
-    for (size_t h = 0; h < nh; h++) {
-        const uint32_t *v = r->tri + h - h % 3;
-        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2] || r->tri[h] >= r->nv)
-            return TESSEL_ERR_INVALID_ARG;
-    }
+    if (!corners_valid(r))
+        return TESSEL_ERR_INVALID_ARG;
     uint32_t *start, *corner, *out = NULL, *in = NULL, *next = NULL;
     tessel_status st = tsl_vertex_corners(r->tri, r->nt, r->nv, &start, &corner);
     if (st)
