@@ -901,19 +901,8 @@ static tessel_status flip_passes(rf *r)
 
 typedef struct split_job {
     uint32_t u, v;
-    float len;
     float pos[3];
 } split_job;
-
-static int cmp_job(const void *pa, const void *pb)
-{
-    const split_job *a = pa, *b = pb;
-    if (a->len != b->len)
-        return a->len > b->len ? -1 : 1;
-    if (a->u != b->u)
-        return a->u < b->u ? -1 : 1;
-    return a->v < b->v ? -1 : (a->v > b->v);
-}
 
 /* Area-weighted vertex normals (unnormalised sums, then unit). */
 static tessel_status vertex_normals(const rf *r, double **out)
@@ -988,7 +977,7 @@ static uint32_t spread3(uint32_t x)
  * sort over 2^(3 ORDER_BITS) cells of the mesh's box), so that consecutive
  * neighbour searches walk the same part of the kd-tree: on 10^6 points the
  * tree does not fit in cache and searches in edge order spend most of
- * their time waiting for memory. The order changes no result. */
+ * their time waiting for memory. The splits follow the same order. */
 static tessel_status spatial_order(const rf *r, const split_job *jobs, size_t ne,
                                    uint32_t **out)
 {
@@ -1072,7 +1061,6 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
         vtx(r, jb->v, pv);
         tsl_sub(pv, pu, d);
         double len = tsl_norm(d);
-        jb->len = (float)len;
         if (!(len >= c->min_len))
             continue;
         for (int k = 0; k < 3; k++) {
@@ -1130,16 +1118,18 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
         r->fit_sum = sum;
         sum = NULL;
     }
-    /* Longest first; each edge once. */
+    /* Each edge once, in the Morton order of the fits: a split reads and
+     * writes the mesh, its edge map and its grid around the edge, so
+     * neighbouring splits in a row find them in cache. */
     size_t nw = 0;
-    for (size_t e = 0; e < ne; e++)
-        if (want[e])
-            jobs[nw++] = jobs[e];
-    qsort(jobs, nw, sizeof *jobs, cmp_job);
+    for (size_t oo = 0; oo < ne; oo++)
+        if (want[order[oo]])
+            order[nw++] = order[oo];
     st = TESSEL_OK;
     for (size_t e = 0; e < nw && !st; e++) {
+        const split_job *jb = &jobs[order[e]];
         bool done_split;
-        st = split_edge(r, jobs[e].u, jobs[e].v, jobs[e].pos, p->min_edge_ratio, &done_split);
+        st = split_edge(r, jb->u, jb->v, jb->pos, p->min_edge_ratio, &done_split);
     }
     if (st)
         goto done;
