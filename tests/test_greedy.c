@@ -10,6 +10,7 @@
 #include "tessel.h"
 
 #include <math.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -600,12 +601,29 @@ static void test_touching_spheres(void)
     tessel_cloud_free(&c);
 }
 
-static int run_cli(const char *args)
+/* Runs tessel reconstruct args; its messages go to log (NULL: nowhere). */
+static int run_cli_log(const char *args, const char *log)
 {
     char cmd[2048];
-    snprintf(cmd, sizeof cmd, "\"%s\" reconstruct %s > /dev/null 2>&1", TESSEL_CLI, args);
+    snprintf(cmd, sizeof cmd, "\"%s\" reconstruct %s > /dev/null 2>%s", TESSEL_CLI, args,
+             log ? log : "&1");
     int rc = system(cmd);
     return rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+}
+
+static int run_cli(const char *args) { return run_cli_log(args, NULL); }
+
+/* Whether the file at path contains text. */
+static bool file_has(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return false;
+    char buf[8192];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    return strstr(buf, text) != NULL;
 }
 
 static void test_cli(void)
@@ -648,6 +666,18 @@ static void test_cli(void)
                   unflipped[i], rep.mean_min_angle_deg, flipped.mean_min_angle_deg);
         tessel_mesh_free(&m);
     }
+    /* The hint towards the other methods: not on the clean torus, and on
+     * the same torus with noise of one spacing, which tears it. */
+    char log[64];
+    snprintf(log, sizeof log, "%s/log.txt", dir);
+    snprintf(args, sizeof args, "%s %s", in, out);
+    CHECK(run_cli_log(args, log) == 0);
+    CHECK(file_has(log, "diagonals flipped") && !file_has(log, "--method smooth"));
+    surf_noise(&c, 0.06, 7);
+    CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
+    CHECK(run_cli_log(args, log) == 0);
+    CHECK(file_has(log, "hint") && file_has(log, "--method smooth"));
+    remove(log);
     snprintf(args, sizeof args, "%s %s --mu 0.5", in, out);
     CHECK(run_cli(args) == 1);
     snprintf(args, sizeof args, "%s %s --plane sideways", in, out);
