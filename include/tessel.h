@@ -619,13 +619,15 @@ typedef struct tessel_greedy_params {
                               paper; docs/greedy.md. Default 1 */
     int flip;              /* 1: hold every triangle until the end, then flip
                               the diagonal of two triangles wherever the
-                              other diagonal is shorter (as the refinement
-                              of tessel_refine does), each flip kept only if
-                              the mesh stays valid. Joining R's neighbours
-                              in angle order makes many slivers where two
-                              parts of the front meet; this removes most
-                              (bunny.ply: 10% of the triangles with an angle
-                              over 150 degrees -> 0.2%). Vertices stay the
+                              two angles facing it add up to more than 180
+                              degrees (the Delaunay rule; tessel_refine's
+                              flips use the shorter diagonal), each flip
+                              kept only if the mesh stays valid. Joining
+                              R's neighbours in angle order makes many
+                              slivers where two parts of the front meet;
+                              this removes most (bunny.ply: 10% of the
+                              triangles with an angle over 150 degrees ->
+                              0.02%). Vertices stay the
                               input points. Not with existing triangles. 0:
                               the paper's triangles. Not in the paper;
                               docs/greedy.md. Default 1 */

@@ -11,8 +11,9 @@
  *    the rays find facing inward are flipped, their rims and the triangles
  *    at points left with two fans (tsl_single_fans) dropped, and the front
  *    runs again from what is left (params.existing) to mesh the seams.
- * 2. diagonals are flipped where the other diagonal of two triangles is
- *    shorter (tsl_flip_diagonals, the refinement's flips). Joining
+ * 2. diagonals are flipped where the two angles facing them add up to
+ *    more than pi, the Delaunay rule (tsl_flip_diagonals, with the
+ *    refinement's checks). Joining
  *    consecutive neighbours in angle order leaves many slivers, mostly
  *    where two parts of the front meet; the flips remove most of them
  *    without moving or adding a vertex.
