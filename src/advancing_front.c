@@ -296,16 +296,8 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
         c0[i] = grid_coord(g, lo[i], i);
         c1[i] = grid_coord(g, hi[i], i);
     }
-    if ((size_t)tri >= g->stamp_cap) {
-        size_t old = g->stamp_cap;
-        if (tsl_grow((void **)&g->stamp, &g->stamp_cap, (size_t)tri + 1, sizeof *g->stamp))
-            return TESSEL_ERR_NOMEM;
-        memset(g->stamp + old, 0, (g->stamp_cap - old) * sizeof *g->stamp);
-        /* A query finds each id at most once: room for every id now, so
-         * queries never grow the result. */
-        if (tsl_grow((void **)&g->found, &g->found_cap, g->stamp_cap, sizeof *g->found))
-            return TESSEL_ERR_NOMEM;
-    }
+    if ((size_t)tri >= g->id_end)
+        g->id_end = (size_t)tri + 1;
     for (int32_t x = c0[0]; x <= c1[0]; x++)
         for (int32_t y = c0[1]; y <= c1[1]; y++)
             for (int32_t z = c0[2]; z <= c1[2]; z++) {
@@ -347,6 +339,15 @@ tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double
         c1[i] = grid_coord(g, hi[i], i);
     }
     g->found_count = 0;
+    if (g->id_end > g->stamp_cap) {
+        size_t old = g->stamp_cap;
+        if (tsl_grow((void **)&g->stamp, &g->stamp_cap, g->id_end, sizeof *g->stamp))
+            return TESSEL_ERR_NOMEM;
+        memset(g->stamp + old, 0, (g->stamp_cap - old) * sizeof *g->stamp);
+        /* A query finds each id at most once: room for every id. */
+        if (tsl_grow((void **)&g->found, &g->found_cap, g->stamp_cap, sizeof *g->found))
+            return TESSEL_ERR_NOMEM;
+    }
     if (++g->stamp_now == 0) {
         memset(g->stamp, 0, g->stamp_cap * sizeof *g->stamp);
         g->stamp_now = 1;
@@ -366,6 +367,33 @@ tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double
                         continue;
                     g->stamp[t] = g->stamp_now;
                     g->found[g->found_count++] = t;
+                }
+            }
+    return TESSEL_OK;
+}
+
+tessel_status tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
+                                  uint32_t **buf, size_t *cap, size_t *count)
+{
+    int32_t c0[3], c1[3];
+    for (int i = 0; i < 3; i++) {
+        c0[i] = grid_coord(g, lo[i], i);
+        c1[i] = grid_coord(g, hi[i], i);
+    }
+    for (int32_t x = c0[0]; x <= c1[0]; x++)
+        for (int32_t y = c0[1]; y <= c1[1]; y++)
+            for (int32_t z = c0[2]; z <= c1[2]; z++) {
+                uint64_t key = grid_key(x, y, z);
+                size_t s = grid_slot(g, key);
+                while (g->keys[s] && g->keys[s] != key)
+                    s = (s + 1) & (g->slots - 1);
+                if (!g->keys[s])
+                    continue;
+                for (uint32_t ent = g->heads[s]; ent != NONE; ent = g->ent_next[ent]) {
+                    if (*count == *cap &&
+                        tsl_grow((void **)buf, cap, *count + 1, sizeof **buf))
+                        return TESSEL_ERR_NOMEM;
+                    (*buf)[(*count)++] = g->ent_tri[ent];
                 }
             }
     return TESSEL_OK;
