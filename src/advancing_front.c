@@ -372,33 +372,6 @@ tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double
     return TESSEL_OK;
 }
 
-tessel_status tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
-                                  uint32_t **buf, size_t *cap, size_t *count)
-{
-    int32_t c0[3], c1[3];
-    for (int i = 0; i < 3; i++) {
-        c0[i] = grid_coord(g, lo[i], i);
-        c1[i] = grid_coord(g, hi[i], i);
-    }
-    for (int32_t x = c0[0]; x <= c1[0]; x++)
-        for (int32_t y = c0[1]; y <= c1[1]; y++)
-            for (int32_t z = c0[2]; z <= c1[2]; z++) {
-                uint64_t key = grid_key(x, y, z);
-                size_t s = grid_slot(g, key);
-                while (g->keys[s] && g->keys[s] != key)
-                    s = (s + 1) & (g->slots - 1);
-                if (!g->keys[s])
-                    continue;
-                for (uint32_t ent = g->heads[s]; ent != NONE; ent = g->ent_next[ent]) {
-                    if (*count == *cap &&
-                        tsl_grow((void **)buf, cap, *count + 1, sizeof **buf))
-                        return TESSEL_ERR_NOMEM;
-                    (*buf)[(*count)++] = g->ent_tri[ent];
-                }
-            }
-    return TESSEL_OK;
-}
-
 /* Plain minimum / maximum of finite numbers (fmin/fmax handle NaN and are
  * function calls). */
 static inline double dmin(double a, double b) { return a < b ? a : b; }

@@ -144,11 +144,6 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
 /* Triangle ids whose cells meet the box [lo, hi], each once, into
  * g->found[0 .. g->found_count). Not thread-safe (scratch in g). */
 tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3]);
-/* The same ids, but as many times as they are listed in those cells,
- * appended to (*buf)[*count ..) (grown as needed); reads g only, so
- * threads may collect from one grid at once. */
-tessel_status tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
-                                  uint32_t **buf, size_t *cap, size_t *count);
 void tsl_trigrid_free(tsl_trigrid *g);
 
 /* The corners of each vertex: corner[start[v] .. start[v + 1]) are the
@@ -183,10 +178,9 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
  * normal and neither meets the mesh beyond shared vertices and edges
  * (exact). tri (nt triangles over the points xyz, nv of them) must be
  * manifold and consistently oriented; the triangles keep their slots.
- * threads: for the first pass on large meshes (0 = OpenMP default); the
- * result is the same for any count. *flips: the diagonals flipped. */
+ * *flips: the diagonals flipped. */
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
-                                 int threads, size_t *flips);
+                                 size_t *flips);
 
 /* Removes the triangles (tri[3 i ..], *count of them, consistently
  * oriented, over n vertices) at every vertex with more than one fan, until

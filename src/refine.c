@@ -25,22 +25,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 #define NONE TESSEL_NONE
 #define MAX_K 256
 /* New triangles may turn at most this much from the ones they replace. */
 #define MAX_TURN_DEG 60.0
 /* Flip passes per round at most (each pass flips every improvable edge). */
 #define MAX_FLIP_PASSES 6
-/* tsl_flip_diagonals' first pass runs in this many slabs of the mesh at
- * once (a fixed number, so that the result does not depend on the thread
- * count), for meshes of at least FLIP_BLOCK_MIN triangles. */
-#define FLIP_BLOCKS 8
-#define FLIP_BLOCK_MIN 8192
-#define BLOCK_MIXED 0xFF
 
 tessel_refine_params tessel_refine_params_default(void)
 {
@@ -64,30 +54,6 @@ typedef struct edge_map {
     size_t slots, count;
 } edge_map;
 
-/* One slab of a blocked flip pass (see flip_passes): the triangles whose
- * three corners lie strictly inside it belong to it (block[t] == me);
- * those across a cut belong to none (BLOCK_MIXED) and do not change during
- * the pass. */
-/* A thread's marks of the triangles a query has found (16 bits, cleared
- * when they wrap: 2 bytes per triangle and thread). */
-typedef struct flip_scratch {
-    uint16_t *stamp;
-    uint16_t now;
-} flip_scratch;
-
-typedef struct flip_block {
-    const uint8_t *block;       /* per triangle: its slab or BLOCK_MIXED */
-    uint8_t me;
-    const tsl_trigrid *global;  /* the mesh's grid as the pass began */
-    tsl_trigrid local;          /* this slab's triangles changed since */
-    uint32_t *moved;            /* their ids (each once: moved_mark) */
-    size_t nmoved, cap_moved;
-    uint8_t *moved_mark;        /* per triangle, shared: set by the owner */
-    uint32_t *found;            /* collected grid entries */
-    size_t nfound, cap_found;
-    flip_scratch *scratch;      /* of the thread flipping the slab */
-} flip_block;
-
 typedef struct rf {
     const float *xyz; /* the vertices: xyz_own, or the caller's points when
                          only flipping (tsl_flip_diagonals never splits) */
@@ -109,8 +75,6 @@ typedef struct rf {
     edge_map fit_of;
     float *fit_sum;
     tessel_refine_stats stats;
-    flip_block *blk; /* set while a slab of a blocked pass is flipped */
-    double grid_lo[3], grid_hi[3], grid_cell; /* as build_grid made it */
 } rf;
 
 static inline uint64_t edge_key(uint32_t a, uint32_t b)
@@ -262,8 +226,7 @@ static void tri_box(const rf *r, uint32_t t, double lo[3], double hi[3])
     }
 }
 
-/* Records triangle t's box and lists it in the grid at its place (in a
- * slab's own grid during a blocked pass). */
+/* Records triangle t's box and lists it in the grid at its place. */
 static tessel_status grid_add(rf *r, uint32_t t)
 {
     double lo[3], hi[3];
@@ -273,55 +236,7 @@ static tessel_status grid_add(rf *r, uint32_t t)
         b[c] = (float)lo[c]; /* exact: the corners are floats */
         b[3 + c] = (float)hi[c];
     }
-    flip_block *k = r->blk;
-    if (!k)
-        return tsl_trigrid_insert(&r->grid, t, lo, hi);
-    if (!k->moved_mark[t]) {
-        if (tsl_grow((void **)&k->moved, &k->cap_moved, k->nmoved + 1, sizeof *k->moved))
-            return TESSEL_ERR_NOMEM;
-        k->moved[k->nmoved++] = t;
-        k->moved_mark[t] = 1;
-    }
-    return tsl_trigrid_insert(&k->local, t, lo, hi);
-}
-
-/* The triangles listed in the grid cells that meet [lo, hi], into *found
- * (*count of them). During a blocked pass: those of the grid as the pass
- * began and of the slab's own grid, repeats included, less the triangles
- * of other slabs, which lie beyond a cut from every triangle of this one
- * and may be changing. */
-static tessel_status grid_candidates(rf *r, const double lo[3], const double hi[3],
-                                     const uint32_t **found, size_t *count)
-{
-    flip_block *k = r->blk;
-    if (!k) {
-        tessel_status st = tsl_trigrid_query(&r->grid, lo, hi);
-        *found = r->grid.found;
-        *count = r->grid.found_count;
-        return st;
-    }
-    k->nfound = 0;
-    tessel_status st = tsl_trigrid_collect(k->global, lo, hi, &k->found, &k->cap_found,
-                                           &k->nfound);
-    if (!st)
-        st = tsl_trigrid_collect(&k->local, lo, hi, &k->found, &k->cap_found, &k->nfound);
-    flip_scratch *sc = k->scratch;
-    if (++sc->now == 0) {
-        memset(sc->stamp, 0, r->nt * sizeof *sc->stamp);
-        sc->now = 1;
-    }
-    size_t n = 0;
-    for (size_t i = 0; i < k->nfound; i++) {
-        uint32_t e = k->found[i];
-        uint8_t b = k->block[e];
-        if ((b == k->me || b == BLOCK_MIXED) && sc->stamp[e] != sc->now) {
-            sc->stamp[e] = sc->now;
-            k->found[n++] = e;
-        }
-    }
-    *found = k->found;
-    *count = n;
-    return st;
+    return tsl_trigrid_insert(&r->grid, t, lo, hi);
 }
 
 /* Whether every point q[0 .. count) lies strictly on one side of the plane
@@ -436,13 +351,11 @@ static tessel_status check_news(rf *r, const uint32_t *news, int count,
         for (int b = a + 1; b < count; b++)
             if (meets(&nt[a], nt[b].v, (const double(*)[3])nt[b].p))
                 return TESSEL_OK;
-    const uint32_t *found;
-    size_t nfound;
-    tessel_status st = grid_candidates(r, lo, hi, &found, &nfound);
+    tessel_status st = tsl_trigrid_query(&r->grid, lo, hi);
     if (st)
         return st;
-    for (size_t i = 0; i < nfound; i++) {
-        uint32_t e = found[i];
+    for (size_t i = 0; i < r->grid.found_count; i++) {
+        uint32_t e = r->grid.found[i];
         if (e >= r->nt)
             continue;
         /* The box of e where it is now (the grid may list it elsewhere). */
@@ -933,176 +846,6 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
     return TESSEL_OK;
 }
 
-/* One look at half-edge hh in a pass: its edge is flipped if it should
- * and may be (flip_edge), from its smaller half-edge. The six edges of the
- * two triangles of a flip are marked on both sides, so that a pass looks
- * at them again. */
-static tessel_status look_at(rf *r, uint8_t *look, uint32_t hh, size_t *flips)
-{
-    look[hh] = 0;
-    uint32_t g = r->twin[hh];
-    if (g == NONE || g < hh)
-        return TESSEL_OK;
-    bool done, again;
-    tessel_status st = flip_edge(r, hh, &done, &again);
-    look[hh] = again;
-    if (st || !done)
-        return st;
-    (*flips)++;
-    const uint32_t quad[2] = {hh / 3, g / 3};
-    for (int q = 0; q < 2; q++)
-        for (uint32_t i = 0; i < 3; i++) {
-            uint32_t e = 3 * quad[q] + i, w = r->twin[e];
-            look[e] = 1;
-            if (w != NONE)
-                look[w] = 1;
-        }
-    return TESSEL_OK;
-}
-
-static int thread_id(void)
-{
-#ifdef _OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
-
-/* Slab of each triangle for a blocked pass: FLIP_BLOCKS slabs across the
- * longest side of the mesh's box, cut where they hold about as many
- * triangle centroids each (a histogram of 4096 bins); a triangle with a
- * corner on or beyond a cut of its slab is BLOCK_MIXED. */
-static tessel_status make_slabs(const rf *r, uint8_t *block)
-{
-    enum { BINS = 4096 };
-    int axis = 0;
-    for (int c = 1; c < 3; c++)
-        if (r->grid_hi[c] - r->grid_lo[c] > r->grid_hi[axis] - r->grid_lo[axis])
-            axis = c;
-    double lo = r->grid_lo[axis], width = (r->grid_hi[axis] - lo) / BINS;
-    size_t *hist = tsl_calloc_array(BINS, sizeof *hist);
-    if (!hist)
-        return TESSEL_ERR_NOMEM;
-    for (size_t t = 0; t < r->nt; t++) {
-        double c = 0.0;
-        for (int i = 0; i < 3; i++)
-            c += r->xyz[3 * (size_t)r->tri[3 * t + i] + axis];
-        double b = width > 0.0 ? (c / 3.0 - lo) / width : 0.0;
-        hist[b < 0.0 ? 0 : b >= BINS ? BINS - 1 : (size_t)b]++;
-    }
-    double cut[FLIP_BLOCKS - 1];
-    size_t sum = 0, k = 0;
-    for (size_t b = 0; b < BINS && k < FLIP_BLOCKS - 1; b++) {
-        sum += hist[b];
-        while (k < FLIP_BLOCKS - 1 && sum * FLIP_BLOCKS >= (k + 1) * r->nt)
-            cut[k++] = lo + (double)(b + 1) * width;
-    }
-    while (k < FLIP_BLOCKS - 1)
-        cut[k++] = INFINITY;
-    free(hist);
-    for (size_t t = 0; t < r->nt; t++) {
-        int slab = -1;
-        for (int i = 0; i < 3; i++) {
-            double x = r->xyz[3 * (size_t)r->tri[3 * t + i] + axis];
-            int s = 0;
-            while (s < FLIP_BLOCKS - 1 && x > cut[s])
-                s++;
-            if ((s < FLIP_BLOCKS - 1 && x == cut[s]) || (slab >= 0 && s != slab)) {
-                slab = -1;
-                break;
-            }
-            slab = s;
-        }
-        block[t] = slab < 0 ? BLOCK_MIXED : (uint8_t)slab;
-    }
-    return TESSEL_OK;
-}
-
-/* The first pass of tsl_flip_diagonals, slab by slab, the slabs in
- * parallel. A slab looks at the half-edges of its own triangles in
- * half-edge order; an edge whose other triangle lies across a cut is left
- * marked for the next pass. A flip of a slab reads and writes only that
- * slab's triangles, the twins of the triangles beside them (never read by
- * another slab's flip: they run between two of this slab's vertices) and
- * reads triangles across a cut, which do not change in the pass; the
- * triangles of other slabs lie beyond a cut from its own. So the slabs
- * do not see each other, and the flips are those of the slabs taken one
- * after the other, whatever the thread count. Each slab lists its changed
- * triangles in a grid of its own; they join the mesh's grid afterwards. */
-static tessel_status blocked_pass(rf *r, uint8_t *look, int threads, size_t *flips)
-{
-    uint8_t *block = tsl_alloc_array(r->nt, 1);
-    uint8_t *moved_mark = tsl_calloc_array(r->nt, 1);
-    flip_block *blk = tsl_calloc_array(FLIP_BLOCKS, sizeof *blk);
-    rf *part = tsl_alloc_array(FLIP_BLOCKS, sizeof *part);
-    int nthreads = tsl_threads(threads);
-    nthreads = nthreads < FLIP_BLOCKS ? nthreads : FLIP_BLOCKS;
-    flip_scratch *scratch = tsl_calloc_array((size_t)nthreads, sizeof *scratch);
-    size_t done[FLIP_BLOCKS] = {0};
-    tessel_status status[FLIP_BLOCKS];
-    tessel_status st = TESSEL_ERR_NOMEM;
-    if (!block || !moved_mark || !blk || !part || !scratch)
-        goto out;
-    for (int t = 0; t < nthreads; t++)
-        if (!(scratch[t].stamp = tsl_calloc_array(r->nt, sizeof *scratch[t].stamp)))
-            goto out;
-    if ((st = make_slabs(r, block)))
-        goto out;
-    for (int k = 0; k < FLIP_BLOCKS && !st; k++) {
-        blk[k].block = block;
-        blk[k].me = (uint8_t)k;
-        blk[k].global = &r->grid;
-        blk[k].moved_mark = moved_mark;
-        part[k] = *r;
-        part[k].blk = &blk[k];
-        memset(&part[k].stats, 0, sizeof part[k].stats);
-        st = tsl_trigrid_init(&blk[k].local, r->grid_lo, r->grid_hi, r->grid_cell);
-    }
-    if (st)
-        goto out;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(nthreads)
-    for (int k = 0; k < FLIP_BLOCKS; k++) {
-        rf *q = &part[k];
-        blk[k].scratch = &scratch[thread_id()];
-        status[k] = TESSEL_OK;
-        for (size_t t = 0; t < q->nt && !status[k]; t++) {
-            if (block[t] != k)
-                continue;
-            for (uint32_t i = 0; i < 3 && !status[k]; i++) {
-                uint32_t hh = 3 * (uint32_t)t + i, g = q->twin[hh];
-                if (!look[hh] || (g != NONE && g > hh && block[g / 3] != k))
-                    continue;
-                status[k] = look_at(q, look, hh, &done[k]);
-            }
-        }
-    }
-    for (int k = 0; k < FLIP_BLOCKS && !st; k++) {
-        st = status[k];
-        *flips += done[k];
-        r->stats.flips += part[k].stats.flips;
-        r->stats.skipped_invalid += part[k].stats.skipped_invalid;
-        for (size_t m = 0; m < blk[k].nmoved && !st; m++)
-            st = grid_add(r, blk[k].moved[m]);
-    }
-out:
-    if (blk)
-        for (int k = 0; k < FLIP_BLOCKS; k++) {
-            tsl_trigrid_free(&blk[k].local);
-            free(blk[k].moved);
-            free(blk[k].found);
-        }
-    if (scratch)
-        for (int t = 0; t < nthreads; t++)
-            free(scratch[t].stamp);
-    free(scratch);
-    free(blk);
-    free(part);
-    free(block);
-    free(moved_mark);
-    return st;
-}
-
 /* Flip passes until none flips (at most MAX_FLIP_PASSES), each in half-edge
  * order. The first pass looks at every edge; a later one only at the edges
  * whose answer may have changed: the six of the two triangles of every
@@ -1111,10 +854,8 @@ out:
  * for a reason outside their own two triangles. Every other edge would be
  * refused again for the same reason, so the flips are exactly those of
  * full passes, for a fraction of the reads: on 10^6 points the later
- * passes flip a few hundred edges out of 900,000. Without an edge map
- * (tsl_flip_diagonals) the first pass of a large mesh runs in slabs, in
- * parallel (blocked_pass). */
-static tessel_status flip_passes(rf *r, int threads)
+ * passes flip a few hundred edges out of 900,000. */
+static tessel_status flip_passes(rf *r)
 {
     size_t nh = 3 * r->nt;
     uint8_t *look = tsl_alloc_array(nh ? nh : 1, 1);
@@ -1124,15 +865,30 @@ static tessel_status flip_passes(rf *r, int threads)
     tessel_status st = TESSEL_OK;
     for (int pass = 0; pass < MAX_FLIP_PASSES && !st; pass++) {
         size_t flips = 0;
-        bool blocked = pass == 0 && !r->edges.keys && r->nt >= FLIP_BLOCK_MIN;
-        if (blocked)
-            st = blocked_pass(r, look, threads, &flips);
-        else
-            for (size_t hh = 0; hh < nh && !st; hh++)
-                if (look[hh])
-                    st = look_at(r, look, (uint32_t)hh, &flips);
-        /* A blocked pass leaves the edges across its cuts to the next. */
-        if (!flips && !blocked)
+        for (size_t hh = 0; hh < nh; hh++) {
+            if (!look[hh])
+                continue;
+            look[hh] = 0;
+            uint32_t g = r->twin[hh];
+            if (g == NONE || g < hh)
+                continue;
+            bool done, again;
+            if ((st = flip_edge(r, (uint32_t)hh, &done, &again)))
+                break;
+            look[hh] = again;
+            if (!done)
+                continue;
+            flips++;
+            const uint32_t quad[2] = {(uint32_t)hh / 3, g / 3};
+            for (int q = 0; q < 2; q++)
+                for (uint32_t i = 0; i < 3; i++) {
+                    uint32_t e = 3 * quad[q] + i, w = r->twin[e];
+                    look[e] = 1;
+                    if (w != NONE)
+                        look[w] = 1;
+                }
+        }
+        if (!flips)
             break;
     }
     free(look);
@@ -1190,12 +946,7 @@ static tessel_status build_grid(rf *r)
         mean_len += tsl_norm(d);
     }
     mean_len /= (double)r->nt;
-    for (int k = 0; k < 3; k++) {
-        r->grid_lo[k] = lo[k];
-        r->grid_hi[k] = hi[k];
-    }
-    r->grid_cell = 2.0 * mean_len;
-    tessel_status st = tsl_trigrid_init(&r->grid, lo, hi, r->grid_cell);
+    tessel_status st = tsl_trigrid_init(&r->grid, lo, hi, 2.0 * mean_len);
     for (size_t t = 0; t < r->nt && !st; t++)
         st = grid_add(r, (uint32_t)t);
     return st;
@@ -1383,7 +1134,7 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
     if (st)
         goto done;
     if (p->flip)
-        st = flip_passes(r, c->threads);
+        st = flip_passes(r);
 done:
     free(jobs);
     free(want);
@@ -1522,7 +1273,7 @@ done:
 }
 
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
-                                 int threads, size_t *flips)
+                                 size_t *flips)
 {
     *flips = 0;
     if (nv >= UINT32_MAX || nt >= UINT32_MAX / 3)
@@ -1541,7 +1292,7 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
     tessel_status st = TESSEL_ERR_NOMEM;
     if (r.twin && r.box && !(st = build_twins(&r)) && !(st = build_grid(&r)))
-        st = flip_passes(&r, threads);
+        st = flip_passes(&r);
     *flips = r.stats.flips;
     free(r.twin);
     free(r.box);

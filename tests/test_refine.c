@@ -495,7 +495,7 @@ static void test_flip_diagonals(void)
     const float xyz[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0, 100, 100, 100};
     uint32_t tri[6] = {0, 1, 2, 0, 2, 3};
     size_t flips = 0;
-    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, 0, &flips) == TESSEL_OK);
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK);
     CHECK(flips == 1);
     bool has13[2] = {false, false};
     for (int t = 0; t < 2; t++)
@@ -505,16 +505,16 @@ static void test_flip_diagonals(void)
         }
     CHECK(has13[0] && has13[1]);
     /* Flipping again changes nothing: the pair is Delaunay now. */
-    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, 0, &flips) == TESSEL_OK && flips == 0);
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK && flips == 0);
     /* Lifted at 3, the pair bounds a thin tetrahedron whose other two faces
      * the flip would make; a triangle rising from inside it (touching
      * neither old triangle) forbids the flip, which happens without it. */
     const float lifted[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0.3f,
                             1.5f, 0.5f, 0.075f, 1.5f, 0.5f, 5, 1.6f, 0.6f, 5};
     uint32_t lt[9] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
-    CHECK(tsl_flip_diagonals(lifted, 7, lt, 3, 0, &flips) == TESSEL_OK && flips == 0);
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 3, &flips) == TESSEL_OK && flips == 0);
     CHECK(memcmp(lt, (uint32_t[]){0, 1, 2, 0, 2, 3, 4, 5, 6}, sizeof lt) == 0);
-    CHECK(tsl_flip_diagonals(lifted, 7, lt, 2, 0, &flips) == TESSEL_OK && flips == 1);
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 2, &flips) == TESSEL_OK && flips == 1);
     /* Two fans at vertex 0 (a bow tie), an edge in three triangles, an edge
      * run twice the same way, a bad index. */
     const float six[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0, 0, 0, 1};
@@ -522,178 +522,15 @@ static void test_flip_diagonals(void)
     uint32_t three[9] = {0, 1, 2, 1, 0, 3, 1, 0, 4};
     uint32_t same_way[6] = {0, 1, 2, 0, 1, 3};
     uint32_t bad[3] = {0, 1, 6};
-    CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, 0, &flips) == TESSEL_ERR_INVALID_ARG);
-    CHECK(tsl_flip_diagonals(six, 6, three, 3, 0, &flips) == TESSEL_ERR_INVALID_ARG);
-    CHECK(tsl_flip_diagonals(six, 6, same_way, 2, 0, &flips) == TESSEL_ERR_INVALID_ARG);
-    CHECK(tsl_flip_diagonals(six, 6, bad, 1, 0, &flips) == TESSEL_ERR_INVALID_ARG);
-}
-
-typedef struct half_key {
-    uint64_t key;
-    uint32_t he;
-} half_key;
-
-static int cmp_half_key(const void *a, const void *b)
-{
-    uint64_t x = ((const half_key *)a)->key, y = ((const half_key *)b)->key;
-    return x < y ? -1 : x > y;
-}
-
-/* Interior edges whose two opposite angles add up to more than pi (by
- * more than a rounding margin), of nt triangles. */
-static size_t non_delaunay(const float *xyz, const uint32_t *tri, size_t nt)
-{
-    half_key *h = malloc(3 * nt * sizeof *h);
-    size_t bad = 0;
-    for (size_t i = 0; i < 3 * nt; i++) {
-        uint64_t a = tri[i], b = tri[i - i % 3 + (i % 3 + 1) % 3];
-        h[i].key = a < b ? a << 32 | b : b << 32 | a;
-        h[i].he = (uint32_t)i;
-    }
-    qsort(h, 3 * nt, sizeof *h, cmp_half_key);
-    for (size_t i = 0; i + 1 < 3 * nt; i++) {
-        if (h[i].key != h[i + 1].key)
-            continue;
-        double cot = 0.0;
-        for (int s = 0; s < 2; s++) {
-            uint32_t e = h[i + s].he, base = e - e % 3;
-            const float *u = xyz + 3 * tri[e], *v = xyz + 3 * tri[base + (e % 3 + 1) % 3],
-                        *o = xyz + 3 * tri[base + (e % 3 + 2) % 3];
-            double p[3], q[3], c[3];
-            for (int k = 0; k < 3; k++) {
-                p[k] = (double)u[k] - o[k];
-                q[k] = (double)v[k] - o[k];
-            }
-            c[0] = p[1] * q[2] - p[2] * q[1];
-            c[1] = p[2] * q[0] - p[0] * q[2];
-            c[2] = p[0] * q[1] - p[1] * q[0];
-            cot += (p[0] * q[0] + p[1] * q[1] + p[2] * q[2]) / sqrt(c[0] * c[0] + c[1] * c[1] +
-                                                                    c[2] * c[2]);
-        }
-        bad += cot < -1e-6;
-    }
-    free(h);
-    return bad;
-}
-
-/* A mesh large enough for the first pass to run in slabs: a jittered
- * height field of 28,322 triangles, each cell split along a random
- * diagonal. The flips must be the same for 1, 2 and 3 threads (slabs
- * flipped at once must not see each other), leave no edge that is not
- * Delaunay (nothing on a gentle height field forbids a flip, across the
- * cuts between slabs too), and keep the mesh valid. */
-static void test_flip_slabs(void)
-{
-    enum { N = 120 };
-    const size_t nv = N * N, nt = 2 * (N - 1) * (N - 1);
-    float *xyz = malloc(3 * nv * sizeof *xyz);
-    uint32_t *tri[3];
-    surf_rng rng = surf_seed(41);
-    for (size_t j = 0; j < N; j++)
-        for (size_t i = 0; i < N; i++) {
-            double x = (i + 0.3 * (surf_uniform(&rng) - 0.5)) / (N - 1);
-            double y = (j + 0.3 * (surf_uniform(&rng) - 0.5)) / (N - 1);
-            float *p = xyz + 3 * (j * N + i);
-            p[0] = (float)x;
-            p[1] = (float)y;
-            p[2] = (float)(0.05 * sin(6.0 * x) * cos(5.0 * y));
-        }
-    for (int k = 0; k < 3; k++)
-        tri[k] = malloc(3 * nt * sizeof *tri[k]);
-    size_t t = 0;
-    for (uint32_t j = 0; j + 1 < N; j++)
-        for (uint32_t i = 0; i + 1 < N; i++) {
-            uint32_t a = j * N + i, b = a + 1, c = a + N + 1, d = a + N;
-            uint32_t *q = tri[0] + 3 * t;
-            if (surf_uniform(&rng) < 0.5) {
-                memcpy(q, (uint32_t[]){a, b, c, a, c, d}, 6 * sizeof *q);
-            } else {
-                memcpy(q, (uint32_t[]){a, b, d, b, c, d}, 6 * sizeof *q);
-            }
-            t += 2;
-        }
-    size_t before = non_delaunay(xyz, tri[0], nt), flips[3];
-    for (int k = 1; k < 3; k++)
-        memcpy(tri[k], tri[0], 3 * nt * sizeof *tri[k]);
-    for (int k = 0; k < 3; k++)
-        CHECK(tsl_flip_diagonals(xyz, nv, tri[k], nt, k + 1, &flips[k]) == TESSEL_OK);
-    size_t after = non_delaunay(xyz, tri[0], nt);
-    printf("height field: %zu flips, edges not Delaunay %zu -> %zu\n", flips[0], before,
-           after);
-    CHECK(flips[0] == flips[1] && flips[0] == flips[2]);
-    CHECK(memcmp(tri[0], tri[1], 3 * nt * sizeof *tri[0]) == 0 &&
-          memcmp(tri[0], tri[2], 3 * nt * sizeof *tri[0]) == 0);
-    CHECK_MSG(before > nt / 20 && after == 0, "%zu -> %zu edges not Delaunay", before, after);
-    tessel_mesh m;
-    CHECK(tessel_mesh_alloc(&m, nv, nt, 0, 0) == TESSEL_OK);
-    memcpy(m.xyz, xyz, 3 * nv * sizeof *xyz);
-    memcpy(m.triangles, tri[0], 3 * nt * sizeof *tri[0]);
-    tessel_mesh_report r = check(&m);
-    CHECK(tessel_mesh_report_valid(&r) && r.self_intersections == 0 && r.components == 1 &&
-          r.boundary_edges == 4 * (N - 1));
-    tessel_mesh_free(&m);
-    for (int k = 0; k < 3; k++)
-        free(tri[k]);
-    free(xyz);
-}
-
-static tessel_status sink_append(void *user, const uint32_t *tri, size_t count)
-{
-    tessel_mesh *m = user;
-    uint32_t *grown = realloc(m->triangles, 3 * (m->triangle_count + count) * sizeof *tri);
-    if (!grown)
-        return TESSEL_ERR_NOMEM;
-    m->triangles = grown;
-    memcpy(m->triangles + 3 * m->triangle_count, tri, 3 * count * sizeof *tri);
-    m->triangle_count += count;
-    return TESSEL_OK;
-}
-
-/* Where the order of the flips matters: greedy's unflipped mesh of a
- * noisy sphere, whose folds refuse many flips (a refusal can depend on
- * what was flipped before). The same flips for 1, 2 and 3 threads. */
-static void test_flip_slabs_noisy(void)
-{
-    tessel_cloud c;
-    CHECK(surf_sphere(&c, 0.03, 43) == TESSEL_OK);
-    surf_noise(&c, 0.012, 44);
-    tessel_greedy_params p = tessel_greedy_params_default();
-    p.flip = 0;
-    tessel_mesh raw = {0};
-    tessel_triangle_sink sink = {sink_append, &raw};
-    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink, NULL) == TESSEL_OK);
-    size_t nt = raw.triangle_count, flips[3], refused_edges[3];
-    uint32_t *tri[3];
-    for (int k = 0; k < 3; k++) {
-        tri[k] = malloc(3 * nt * sizeof *tri[k]);
-        memcpy(tri[k], raw.triangles, 3 * nt * sizeof *tri[k]);
-        CHECK(tsl_flip_diagonals(c.xyz, c.count, tri[k], nt, k + 1, &flips[k]) == TESSEL_OK);
-        refused_edges[k] = non_delaunay(c.xyz, tri[k], nt);
-    }
-    printf("noisy sphere: %zu triangles, %zu flips, %zu edges left not Delaunay\n", nt,
-           flips[0], refused_edges[0]);
-    CHECK(nt >= 16384 && flips[0] > nt / 20 && refused_edges[0] > 0);
-    CHECK(flips[0] == flips[1] && flips[0] == flips[2]);
-    CHECK(memcmp(tri[0], tri[1], 3 * nt * sizeof *tri[0]) == 0 &&
-          memcmp(tri[0], tri[2], 3 * nt * sizeof *tri[0]) == 0);
-    tessel_mesh m;
-    CHECK(tessel_mesh_alloc(&m, c.count, nt, 0, 0) == TESSEL_OK);
-    memcpy(m.xyz, c.xyz, 3 * c.count * sizeof *c.xyz);
-    memcpy(m.triangles, tri[0], 3 * nt * sizeof *tri[0]);
-    tessel_mesh_report r = check(&m);
-    CHECK(tessel_mesh_report_valid(&r) && r.self_intersections == 0);
-    tessel_mesh_free(&m);
-    for (int k = 0; k < 3; k++)
-        free(tri[k]);
-    free(raw.triangles);
-    tessel_cloud_free(&c);
+    CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, three, 3, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, same_way, 2, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, bad, 1, &flips) == TESSEL_ERR_INVALID_ARG);
 }
 
 int main(void)
 {
     test_flip_diagonals();
-    test_flip_slabs();
-    test_flip_slabs_noisy();
     test_refine_sphere();
     test_refine_rounds();
     test_refine_plane();
