@@ -167,6 +167,17 @@ typedef struct tsl_vertices {
     double offset[3];
 } tsl_vertices;
 
+/* Whether a writer writes v's normals / colours: v has them and params
+ * (NULL: the defaults, which write both) asks for them. */
+static inline bool tsl_writes_normals(const tsl_vertices *v, const tessel_write_params *params)
+{
+    return v->normals && (!params || params->write_normals);
+}
+static inline bool tsl_writes_rgb(const tsl_vertices *v, const tessel_write_params *params)
+{
+    return v->rgb && (!params || params->write_rgb);
+}
+
 /* A format writer in three steps, all writing to fp:
  *   begin(v, vertex_count, face_count)  header (counts known up front)
  *   vertices(v, subset, n)              n vertices: v's points subset[i], or

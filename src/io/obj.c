@@ -360,15 +360,6 @@ tessel_status tsl_parse_obj(const uint8_t *data, size_t size, const char *name,
 
 /* ---- writer ---- */
 
-static bool obj_normals(const tsl_vertices *v, const tessel_write_params *params)
-{
-    return v->normals && (!params || params->write_normals);
-}
-static bool obj_rgb(const tsl_vertices *v, const tessel_write_params *params)
-{
-    return v->rgb && (!params || params->write_rgb);
-}
-
 static tessel_status obj_begin(FILE *fp, const tsl_vertices *v, size_t vertex_count,
                                size_t face_count, const tessel_write_params *params)
 {
@@ -383,7 +374,7 @@ static tessel_status obj_begin(FILE *fp, const tsl_vertices *v, size_t vertex_co
 static tessel_status obj_vertices(FILE *fp, const tsl_vertices *v, const uint32_t *subset,
                                   size_t n, const tessel_write_params *params)
 {
-    bool wn = obj_normals(v, params), wc = obj_rgb(v, params);
+    bool wn = tsl_writes_normals(v, params), wc = tsl_writes_rgb(v, params);
     char buf[320];
     for (size_t i = 0; i < n; i++) {
         size_t j = subset ? subset[i] : i;

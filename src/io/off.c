@@ -253,19 +253,10 @@ tessel_status tsl_parse_off(const uint8_t *data, size_t size, const char *name,
 
 /* ---- writer ---- */
 
-static bool off_normals(const tsl_vertices *v, const tessel_write_params *params)
-{
-    return v->normals && (!params || params->write_normals);
-}
-static bool off_rgb(const tsl_vertices *v, const tessel_write_params *params)
-{
-    return v->rgb && (!params || params->write_rgb);
-}
-
 static tessel_status off_begin(FILE *fp, const tsl_vertices *v, size_t vertex_count,
                                size_t face_count, const tessel_write_params *params)
 {
-    bool n = off_normals(v, params), c = off_rgb(v, params);
+    bool n = tsl_writes_normals(v, params), c = tsl_writes_rgb(v, params);
     if (fprintf(fp, "%s%sOFF\n%zu %zu 0\n", c ? "C" : "", n ? "N" : "", vertex_count,
                 face_count) < 0)
         return TESSEL_ERR_IO;
@@ -275,7 +266,7 @@ static tessel_status off_begin(FILE *fp, const tsl_vertices *v, size_t vertex_co
 static tessel_status off_vertices(FILE *fp, const tsl_vertices *v, const uint32_t *subset,
                                   size_t n, const tessel_write_params *params)
 {
-    bool wn = off_normals(v, params), wc = off_rgb(v, params);
+    bool wn = tsl_writes_normals(v, params), wc = tsl_writes_rgb(v, params);
     char buf[256];
     for (size_t i = 0; i < n; i++) {
         size_t j = subset ? subset[i] : i;

@@ -842,14 +842,6 @@ tessel_status tsl_parse_ply(const uint8_t *data, size_t size, const char *name,
 /* Output buffer for binary records. */
 enum { WBUF = 1 << 16 };
 
-static bool ply_normals(const tsl_vertices *v, const tessel_write_params *p)
-{
-    return v->normals && p->write_normals;
-}
-static bool ply_rgb(const tsl_vertices *v, const tessel_write_params *p)
-{
-    return v->rgb && p->write_rgb;
-}
 static bool ply_double(const tsl_vertices *v)
 {
     return v->offset[0] != 0.0 || v->offset[1] != 0.0 || v->offset[2] != 0.0;
@@ -886,9 +878,9 @@ static tessel_status header(FILE *fp, const tsl_vertices *v, size_t vertex_count
                      extra_comments ? extra_comments : "") >= 0;
     ok = ok && fprintf(fp, "element vertex %llu\nproperty %s x\nproperty %s y\nproperty %s z\n",
                        (unsigned long long)vertex_count, t, t, t) >= 0;
-    if (ply_normals(v, params))
+    if (tsl_writes_normals(v, params))
         ok = ok && fputs("property float nx\nproperty float ny\nproperty float nz\n", fp) >= 0;
-    if (ply_rgb(v, params))
+    if (tsl_writes_rgb(v, params))
         ok = ok &&
              fputs("property uchar red\nproperty uchar green\nproperty uchar blue\n", fp) >= 0;
     if (face_count)
@@ -958,7 +950,7 @@ static int ascii_vertex(char *out, const tsl_vertices *v, uint32_t j, bool wn, b
 static tessel_status write_vertices(FILE *fp, const tsl_vertices *v, const uint32_t *subset,
                                     size_t n, const tessel_write_params *params)
 {
-    bool wn = ply_normals(v, params), wc = ply_rgb(v, params), dbl = ply_double(v);
+    bool wn = tsl_writes_normals(v, params), wc = tsl_writes_rgb(v, params), dbl = ply_double(v);
     if (params->ascii) {
         char line[256];
         for (size_t i = 0; i < n; i++) {

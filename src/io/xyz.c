@@ -420,14 +420,6 @@ static bool xyz_csv(const tessel_write_params *params)
 {
     return params && params->format == TESSEL_FORMAT_CSV;
 }
-static bool xyz_normals(const tsl_vertices *v, const tessel_write_params *params)
-{
-    return v->normals && (!params || params->write_normals);
-}
-static bool xyz_rgb(const tsl_vertices *v, const tessel_write_params *params)
-{
-    return v->rgb && (!params || params->write_rgb);
-}
 
 static tessel_status xyz_begin(FILE *fp, const tsl_vertices *v, size_t vertex_count,
                                size_t face_count, const tessel_write_params *params)
@@ -435,7 +427,7 @@ static tessel_status xyz_begin(FILE *fp, const tsl_vertices *v, size_t vertex_co
     (void)vertex_count;
     (void)face_count;
     bool csv = xyz_csv(params);
-    bool n = xyz_normals(v, params), c = xyz_rgb(v, params);
+    bool n = tsl_writes_normals(v, params), c = tsl_writes_rgb(v, params);
     /* XYZ stays bare for 3 and 6 columns, which read back by their count;
      * colours need the names. CSV always names its columns. */
     if (!csv && !c)
@@ -452,7 +444,7 @@ static tessel_status xyz_vertices(FILE *fp, const tsl_vertices *v, const uint32_
                                   size_t n, const tessel_write_params *params)
 {
     char sep = xyz_csv(params) ? ',' : ' ';
-    bool wn = xyz_normals(v, params), wc = xyz_rgb(v, params);
+    bool wn = tsl_writes_normals(v, params), wc = tsl_writes_rgb(v, params);
     char buf[256];
     for (size_t i = 0; i < n; i++) {
         size_t j = subset ? subset[i] : i;
