@@ -161,19 +161,31 @@ static void diag_clear(tessel_diag *diag)
         memset(diag, 0, sizeof *diag);
 }
 
-/* Parses into b; on failure makes sure diag says something. */
-static tessel_status parse_into(tsl_builder *b, const void *data, size_t size,
-                                const char *name, const tessel_read_params *params,
-                                int want_faces, tessel_diag *diag)
+/* What tessel_cloud_parse and tessel_mesh_parse share: the arguments
+ * checked (a NULL name reads as ""), the data parsed into b, which the
+ * caller frees in any case; on failure diag says something. */
+static tessel_status parse_buffer(tsl_builder *b, const void *data, size_t size,
+                                  const char **name, const tessel_read_params *params,
+                                  int want_faces, tessel_diag *diag)
 {
+    memset(b, 0, sizeof *b);
+    if (!data && size)
+        return TESSEL_ERR_INVALID_ARG;
+    tessel_read_params def = tessel_read_params_default();
+    if (!params)
+        params = &def;
+    if (!*name)
+        *name = "";
+    if (!data)
+        data = "";
     tsl_parse_fn fn;
-    tessel_status st = read_format(data, size, name, params, &fn, diag);
+    tessel_status st = read_format(data, size, *name, params, &fn, diag);
     if (st != TESSEL_OK)
         return st;
     tsl_builder_init(b, params);
-    st = fn(data, size, name, want_faces, b, diag);
+    st = fn(data, size, *name, want_faces, b, diag);
     if (st != TESSEL_OK && diag && !diag->message[0])
-        tsl_diag_set(diag, name, 0, 0, 0, "%s", tessel_status_str(st));
+        tsl_diag_set(diag, *name, 0, 0, 0, "%s", tessel_status_str(st));
     return st;
 }
 
@@ -185,16 +197,8 @@ tessel_status tessel_cloud_parse(tessel_cloud *cloud, const void *data, size_t s
     if (!cloud)
         return TESSEL_ERR_INVALID_ARG;
     memset(cloud, 0, sizeof *cloud);
-    if (!data && size)
-        return TESSEL_ERR_INVALID_ARG;
-    tessel_read_params def = tessel_read_params_default();
-    if (!params)
-        params = &def;
-    if (!name)
-        name = "";
     tsl_builder b;
-    memset(&b, 0, sizeof b);
-    tessel_status st = parse_into(&b, data ? data : "", size, name, params, 0, diag);
+    tessel_status st = parse_buffer(&b, data, size, &name, params, 0, diag);
     if (st == TESSEL_OK) {
         st = tsl_builder_finish_cloud(&b, cloud);
         if (st != TESSEL_OK)
@@ -214,16 +218,8 @@ tessel_status tessel_mesh_parse(tessel_mesh *mesh, const void *data, size_t size
     if (!mesh)
         return TESSEL_ERR_INVALID_ARG;
     memset(mesh, 0, sizeof *mesh);
-    if (!data && size)
-        return TESSEL_ERR_INVALID_ARG;
-    tessel_read_params def = tessel_read_params_default();
-    if (!params)
-        params = &def;
-    if (!name)
-        name = "";
     tsl_builder b;
-    memset(&b, 0, sizeof b);
-    tessel_status st = parse_into(&b, data ? data : "", size, name, params, 1, diag);
+    tessel_status st = parse_buffer(&b, data, size, &name, params, 1, diag);
     if (st == TESSEL_OK) {
         st = tsl_builder_finish_mesh(&b, mesh);
         if (st != TESSEL_OK)
