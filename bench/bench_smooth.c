@@ -8,9 +8,11 @@
  *      knot2, the RMS distance from NAME.pd.n05.ply to the true surface
  *      NAME.gt.ply before and after smoothing, and of the representatives;
  *      reduced sizes for a grid of n_min, sigma_max and max_diameter;
- *   3. sharp features: a noisy cube (noise 0.5% of the diagonal), the
- *      distance to the cube near its edges and on its faces before and
- *      after.
+ *   3. sharp features: on the real data, the distance to the true surface
+ *      by distance to its creases (edges over 20 degrees: knot2.gt.ply is
+ *      a tube of eight flat sides); a noisy cube (noise 0.5% of the
+ *      diagonal), the distance to the cube near its edges and on its faces
+ *      before and after.
  * Distances are exact point-to-triangle distances (closest point on a
  * triangle, Ericson, "Real-Time Collision Detection" 5.1.5) found through a
  * uniform grid of triangles.
@@ -403,12 +405,233 @@ static void bench_speed(size_t n)
     tessel_cloud_free(&c);
 }
 
+/* ---- where the error is on real data: near the reference's creases ---- */
+
+/* A reference edge is a crease where the normals of its two triangles
+ * differ by more than this (knot2.gt.ply is a tube of eight flat sides,
+ * 45 degrees apart). */
+#define CREASE_DEG 20.0
+
+typedef struct edge_ref {
+    uint32_t a, b, t;
+} edge_ref;
+
+static int cmp_edge_ref(const void *x, const void *y)
+{
+    const edge_ref *p = x, *q = y;
+    if (p->a != q->a)
+        return p->a < q->a ? -1 : 1;
+    return p->b < q->b ? -1 : p->b > q->b;
+}
+
+static void unit_normal(const tessel_mesh *m, uint32_t t, double n[3])
+{
+    const uint32_t *v = m->triangles + 3 * (size_t)t;
+    double e1[3], e2[3];
+    for (int a = 0; a < 3; a++) {
+        e1[a] = (double)m->xyz[3 * (size_t)v[1] + a] - m->xyz[3 * (size_t)v[0] + a];
+        e2[a] = (double)m->xyz[3 * (size_t)v[2] + a] - m->xyz[3 * (size_t)v[0] + a];
+    }
+    n[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    n[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    n[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    double l = sqrt(dot3(n, n));
+    for (int a = 0; a < 3; a++)
+        n[a] = l > 0 ? n[a] / l : 0.0;
+}
+
+/* The reference's creases as segments (6 doubles each, mesh coordinates);
+ * returns their number, 0 (and *seg NULL) when there are none. */
+static size_t crease_segments(const tessel_mesh *m, double **seg)
+{
+    size_t ne = 3 * m->triangle_count, ns = 0;
+    edge_ref *e = malloc((ne ? ne : 1) * sizeof *e);
+    *seg = malloc((ne ? ne : 1) * 6 * sizeof **seg);
+    if (!e || !*seg) {
+        fprintf(stderr, "out of memory\n");
+        exit(1);
+    }
+    for (size_t t = 0; t < m->triangle_count; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = m->triangles[3 * t + k], b = m->triangles[3 * t + (k + 1) % 3];
+            e[3 * t + k] = (edge_ref){a < b ? a : b, a < b ? b : a, (uint32_t)t};
+        }
+    qsort(e, ne, sizeof *e, cmp_edge_ref);
+    const double cos_crease = cos(CREASE_DEG * 3.141592653589793 / 180.0);
+    for (size_t i = 0; i + 1 < ne; i++) {
+        if (e[i].a != e[i + 1].a || e[i].b != e[i + 1].b)
+            continue;
+        double n0[3], n1[3];
+        unit_normal(m, e[i].t, n0);
+        unit_normal(m, e[i + 1].t, n1);
+        if (fabs(dot3(n0, n1)) >= cos_crease)
+            continue;
+        for (int a = 0; a < 3; a++) {
+            (*seg)[6 * ns + a] = m->xyz[3 * (size_t)e[i].a + a];
+            (*seg)[6 * ns + 3 + a] = m->xyz[3 * (size_t)e[i].b + a];
+        }
+        ns++;
+    }
+    free(e);
+    if (ns == 0) {
+        free(*seg);
+        *seg = NULL;
+    }
+    return ns;
+}
+
+static double segment_distance(const double *s, const double p[3])
+{
+    double d[3], w[3];
+    for (int a = 0; a < 3; a++) {
+        d[a] = s[3 + a] - s[a];
+        w[a] = p[a] - s[a];
+    }
+    double dd = dot3(d, d), t = dd > 0 ? dot3(w, d) / dd : 0.0;
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    double r = 0;
+    for (int a = 0; a < 3; a++) {
+        double x = w[a] - t * d[a];
+        r += x * x;
+    }
+    return sqrt(r);
+}
+
+/* Distance of every point of c to the mesh, into d. */
+static void point_distances(const tri_grid *g, const tessel_cloud *c, double *d)
+{
+#pragma omp parallel for schedule(dynamic, 1024)
+    for (size_t i = 0; i < c->count; i++) {
+        double p[3];
+        for (int a = 0; a < 3; a++)
+            p[a] = c->xyz[3 * i + a] + c->offset[a] - g->m->offset[a];
+        d[i] = mesh_distance(g, p);
+    }
+}
+
+/* RMS distance to the reference before (c) and after (s) smoothing, by the
+ * distance of the point's true position (truth: the same points without
+ * noise) to the nearest crease, in h: on a faceted reference, how much of
+ * what the smoothing leaves is the creases it rounds. Brute force over the
+ * crease segments (a few thousand). */
+static void crease_rows(const char *name, const tri_grid *g, const tessel_cloud *truth,
+                        const tessel_cloud *c, const tessel_cloud *s, double h)
+{
+    double *seg;
+    size_t ns = crease_segments(g->m, &seg);
+    if (ns == 0) {
+        printf("| %s | no edge over %.0f degrees | | | | |\n", name, CREASE_DEG);
+        return;
+    }
+    size_t n = c->count;
+    double *d0 = malloc(n * sizeof *d0), *d1 = malloc(n * sizeof *d1);
+    int *bin = malloc(n * sizeof *bin);
+    if (!d0 || !d1 || !bin) {
+        fprintf(stderr, "out of memory\n");
+        exit(1);
+    }
+    point_distances(g, c, d0);
+    point_distances(g, s, d1);
+    static const double limits[] = {1, 2, 4};
+#pragma omp parallel for schedule(dynamic, 256)
+    for (size_t i = 0; i < n; i++) {
+        double p[3], best = INFINITY;
+        for (int a = 0; a < 3; a++)
+            p[a] = truth->xyz[3 * i + a] + truth->offset[a] - g->m->offset[a];
+        for (size_t k = 0; k < ns; k++)
+            best = fmin(best, segment_distance(seg + 6 * k, p));
+        int b = 0;
+        while (b < 3 && best / h >= limits[b])
+            b++;
+        bin[i] = b;
+    }
+    double s0[4] = {0, 0, 0, 0}, s1[4] = {0, 0, 0, 0}, all1 = 0;
+    size_t cnt[4] = {0, 0, 0, 0};
+    for (size_t i = 0; i < n; i++) {
+        s0[bin[i]] += d0[i] * d0[i];
+        s1[bin[i]] += d1[i] * d1[i];
+        cnt[bin[i]]++;
+        all1 += d1[i] * d1[i];
+    }
+    static const char *label[] = {"< 1 h", "1-2 h", "2-4 h", "> 4 h"};
+    for (int b = 0; b < 4; b++)
+        if (cnt[b])
+            printf("| %s (%zu crease edges) | %s | %zu | %.3f / %.3f | %.2fx | %.0f%% |\n", name,
+                   ns, label[b], cnt[b], sqrt(s0[b] / cnt[b]) / h, sqrt(s1[b] / cnt[b]) / h,
+                   sqrt(s0[b] / s1[b]), 100 * s1[b] / all1);
+    free(d0);
+    free(d1);
+    free(bin);
+    free(seg);
+}
+
 /* ---- 2. real data ---- */
 
 /* Variants of the aggregation table: quadric, aggregate, passes, sigma_w. */
 static const double agg_variants[][4] = {
     {1, 0, 2, 3}, {1, 1, 2, 3}, {1, 1, 3, 3}, {0, 0, 2, 3}, {0, 1, 2, 3}, {0, 1, 2, 2.5}};
 #define N_AGG (sizeof agg_variants / sizeof *agg_variants)
+
+/* DIR/NAME.pd.n05.ply and DIR/NAME.gt.ply; false (with a table row saying
+ * so) when either cannot be read. */
+static bool read_data(const char *dir, const char *name, tessel_cloud *c, tessel_mesh *gt)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s.pd.n05.ply", dir, name);
+    if (tessel_cloud_read(c, path, NULL, NULL) != TESSEL_OK) {
+        printf("| %s | (cannot read %s) |\n", name, path);
+        return false;
+    }
+    snprintf(path, sizeof path, "%s/%s.gt.ply", dir, name);
+    if (tessel_mesh_read(gt, path, NULL, NULL) != TESSEL_OK) {
+        printf("| %s | (cannot read %s) |\n", name, path);
+        tessel_cloud_free(c);
+        return false;
+    }
+    return true;
+}
+
+/* The section on creases: each file smoothed with the defaults. */
+static void bench_creases(const char *dir)
+{
+    static const char *names[] = {"bunny", "elephant", "knot2"};
+    printf("## Where the error is: near the reference's creases (defaults)\n\n");
+    printf("Reference edges whose two triangles' normals differ by over %.0f degrees are "
+           "creases. Points binned by the distance of their true position (NAME.pd.ply: the "
+           "same points without noise) to the nearest one; RMS "
+           "distance to the reference in h before / after; share: of the smoothed cloud's "
+           "squared distances.\n\n",
+           CREASE_DEG);
+    printf("| data | to a crease | points | RMS before / after (h) | gain | share |\n");
+    printf("|---|---|---|---|---|---|\n");
+    for (size_t f = 0; f < sizeof names / sizeof *names; f++) {
+        tessel_cloud c, s, truth;
+        tessel_mesh gt;
+        if (!read_data(dir, names[f], &c, &gt))
+            continue;
+        char path[1024];
+        snprintf(path, sizeof path, "%s/%s.pd.ply", dir, names[f]);
+        if (tessel_cloud_read(&truth, path, NULL, NULL) != TESSEL_OK) {
+            printf("| %s | (cannot read %s) |\n", names[f], path);
+        } else if (truth.count != c.count) {
+            printf("| %s | (%s is not the noisy cloud's points) |\n", names[f], path);
+            tessel_cloud_free(&truth);
+        } else {
+            tri_grid g;
+            double h;
+            if (tri_grid_build(&g, &gt) == 0 && tessel_cloud_spacing(&c, &h) == TESSEL_OK &&
+                tessel_smooth(&c, &s, NULL, NULL, NULL) == TESSEL_OK) {
+                crease_rows(names[f], &g, &truth, &c, &s, h);
+                tessel_cloud_free(&s);
+                tri_grid_free(&g);
+            }
+            tessel_cloud_free(&truth);
+        }
+        tessel_cloud_free(&c);
+        tessel_mesh_free(&gt);
+    }
+    printf("\n");
+}
 
 static void bench_data(const char *dir, uint32_t passes)
 {
@@ -423,20 +646,10 @@ static void bench_data(const char *dir, uint32_t passes)
         "median gain | time | reps | reps RMS / max | time |\n");
     printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (size_t f = 0; f < sizeof names / sizeof *names; f++) {
-        char path[1024];
         tessel_cloud c, s, r;
         tessel_mesh gt;
-        snprintf(path, sizeof path, "%s/%s.pd.n05.ply", dir, names[f]);
-        if (tessel_cloud_read(&c, path, NULL, NULL) != TESSEL_OK) {
-            printf("| %s | (cannot read %s) |\n", names[f], path);
+        if (!read_data(dir, names[f], &c, &gt))
             continue;
-        }
-        snprintf(path, sizeof path, "%s/%s.gt.ply", dir, names[f]);
-        if (tessel_mesh_read(&gt, path, NULL, NULL) != TESSEL_OK) {
-            printf("| %s | (cannot read %s) |\n", names[f], path);
-            tessel_cloud_free(&c);
-            continue;
-        }
         tri_grid g;
         if (tri_grid_build(&g, &gt) != 0)
             return;
@@ -698,8 +911,10 @@ int main(int argc, char **argv)
     printf("# bench_smooth (tessel %s)\n\n", tessel_version());
     if (speed && n >= 100)
         bench_speed(n);
-    if (dir)
+    if (dir) {
         bench_data(dir, passes < 1 ? 1 : passes);
+        bench_creases(dir);
+    }
     bench_cube();
     return 0;
 }
