@@ -1177,10 +1177,7 @@ typedef struct pass_ctx {
     uint16_t *cnt; /* neighbours per point */
     fit_surface *surf; /* each point's fitted surface (params.aggregate), or
                           NULL */
-    /* For crowded blocks: a kd-tree over the cloud and each point's sorted
-     * position; NULL when no block can be crowded. */
-    const tessel_index *crowd_index;
-    const uint32_t *pos_of;
+    struct crowd *crowd; /* for crowded blocks */
 } pass_ctx;
 
 typedef struct pass_count {
@@ -1224,19 +1221,64 @@ static inline void fit_first(const pass_ctx *x, fit_buf *fb, uint32_t s, const t
     count_fit(pc, fit, its, f->max_iterations);
 }
 
+/* For crowded blocks: a kd-tree over the cloud and each point's sorted
+ * position, built by the first thread that meets one. A random sample's
+ * fullest cell often passes the bound that makes a crowded block possible
+ * (27 times it over BLOCK_CAP) while no block is crowded: 10^6 points on a
+ * torus have cells of up to 38 points and none of their blocks over 1024,
+ * and building the tree anyway cost a tenth of the pass. */
+typedef struct crowd {
+    const float *xyz; /* the cloud */
+    const tsl_grid *g;
+    tessel_index *index;
+    uint32_t *pos_of;
+    tessel_status st; /* of the build */
+} crowd;
+
+static tessel_status crowd_build(crowd *c)
+{
+    size_t n = c->g->n;
+    tessel_status st = tessel_index_build(&c->index, c->xyz, n);
+    if (st != TESSEL_OK)
+        return st;
+    if (!(c->pos_of = tsl_alloc_array(n ? n : 1, sizeof *c->pos_of)))
+        return TESSEL_ERR_NOMEM;
+    for (size_t s = 0; s < n; s++)
+        c->pos_of[c->g->perm[s]] = (uint32_t)s;
+    return TESSEL_OK;
+}
+
+/* True once the tree is there; false if building it failed (c->st). */
+static bool crowd_ready(crowd *c)
+{
+    bool ok;
+#ifdef _OPENMP
+#pragma omp critical(tsl_smooth_crowd)
+#endif
+    {
+        if (!c->pos_of && c->st == TESSEL_OK)
+            c->st = crowd_build(c);
+        ok = c->st == TESSEL_OK;
+    }
+    return ok;
+}
+
 /* The points of a crowded cell: their k nearest within the cut-off from
  * the kd-tree, which returns them in the same order as the grid search. */
 static void crowded_cell(const pass_ctx *x, fit_buf *fb, size_t ci, pass_count *pc)
 {
     const tsl_grid *g = x->g;
+    if (!crowd_ready(x->crowd))
+        return; /* the pass reports x->crowd->st */
     const float r2max = (float)(x->f->rmax * x->f->rmax);
     topk t;
     t.k = x->f->k;
     for (uint32_t s = g->start[ci]; s < g->start[ci + 1]; s++) {
-        size_t got = tessel_index_knn(x->crowd_index, g->sxyz + 3 * (size_t)s, t.k, t.id, t.d);
+        size_t got =
+            tessel_index_knn(x->crowd->index, g->sxyz + 3 * (size_t)s, t.k, t.id, t.d);
         t.cnt = 0;
         while (t.cnt < got && t.d[t.cnt] <= r2max) {
-            t.pos[t.cnt] = x->pos_of[t.id[t.cnt]];
+            t.pos[t.cnt] = x->crowd->pos_of[t.id[t.cnt]];
             t.cnt++;
         }
         fit_first(x, fb, s, &t, pc);
@@ -1458,8 +1500,8 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     uint16_t *cnt = NULL;
     float *ref0 = NULL;
     fit_surface *surf = NULL;
-    tessel_index *crowd_index = NULL;
-    uint32_t *pos_of = NULL;
+    crowd cw;
+    memset(&cw, 0, sizeof cw);
     tessel_cloud res;
     memset(&res, 0, sizeof res);
     for (int i = 0; i < 4; i++)
@@ -1480,6 +1522,7 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     x.nb = nb;
     x.cnt = cnt;
     x.surf = surf;
+    x.crowd = &cw;
     if (cloud->has_viewpoint) {
         x.has_viewpoint = 1;
         for (int i = 0; i < 3; i++)
@@ -1509,25 +1552,8 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     }
     if (st != TESSEL_OK)
         goto done;
-    /* A block of 27 cells can be crowded only if some cell holds more
-     * than a 27th of BLOCK_CAP (uneven scans); then the kd-tree serves
-     * the crowded ones. */
-    size_t max_cell = 0;
-    for (size_t c = 0; c < g.ncell; c++)
-        if (g.start[c + 1] - g.start[c] > max_cell)
-            max_cell = g.start[c + 1] - g.start[c];
-    if (27 * max_cell > BLOCK_CAP) {
-        if ((st = tessel_index_build(&crowd_index, cloud->xyz, n)))
-            goto done;
-        if (!(pos_of = tsl_alloc_array(n, sizeof *pos_of))) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        for (size_t s = 0; s < n; s++)
-            pos_of[g.perm[s]] = (uint32_t)s;
-        x.crowd_index = crowd_index;
-        x.pos_of = pos_of;
-    }
+    cw.xyz = cloud->xyz;
+    cw.g = &g;
     if (cloud->normals) {
         if (!(ref0 = tsl_alloc_array(n, 3 * sizeof(float)))) {
             st = TESSEL_ERR_NOMEM;
@@ -1592,6 +1618,10 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
                 c_unfit += pc.unfit;
                 c_unconv += pc.unconverged;
                 c_iter += pc.iterations;
+            }
+            if (cw.st != TESSEL_OK) {
+                st = cw.st;
+                goto done;
             }
             total.unfit += c_unfit;
             total.unconverged += c_unconv;
@@ -1663,8 +1693,8 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
 
 done:
     tsl_grid_free(&g);
-    tessel_index_destroy(crowd_index);
-    free(pos_of);
+    tessel_index_destroy(cw.index);
+    free(cw.pos_of);
     for (int i = 0; i < 4; i++)
         free(buf[i]);
     free(nb);
