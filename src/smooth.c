@@ -1037,6 +1037,14 @@ TSL_CLONES static void topk_block(topk *t, block *b, const tsl_grid *g, const fl
     const size_t m = b->m;
     const float qx = q[0], qy = q[1], qz = q[2];
     float thr = *guess < r2max ? *guess : r2max;
+    /* k or more copies of one point make the k-th distance 0: the guess
+     * from such a query, and the halving below, must stop above 0, or the
+     * loops never end (they hung on such clouds). A 64th of a cell's
+     * square is far below any k-th distance the cells are sized for, and
+     * the selection is exact whatever the threshold. */
+    const float least = (float)(g->c * g->c) * (1.0f / 64.0f);
+    if (thr < least)
+        thr = least < r2max ? least : r2max;
     for (size_t j = 0; j < m; j++) {
         float dx = b->x[j] - qx, dy = b->y[j] - qy, dz = b->z[j] - qz;
         float d = (dx * dx + dy * dy) + dz * dz;
@@ -1060,7 +1068,7 @@ TSL_CLONES static void topk_block(topk *t, block *b, const tsl_grid *g, const fl
             shrunk = true;
             float half = 0.5f * thr;
             bool smaller = false;
-            while (count_below(b->d, m, (int32_t)float_bits(half)) >= t->k)
+            while (half >= least && count_below(b->d, m, (int32_t)float_bits(half)) >= t->k)
                 thr = half, half *= 0.5f, smaller = true;
             if (smaller)
                 continue;

@@ -538,6 +538,26 @@ static void test_projector_shared_index(void)
     tessel_cloud_free(&plane);
 }
 
+/* Points whose smoothed position or normal differs from the projector's
+ * answer for the same point (unfit: the projector's unfit count). */
+static size_t projector_mismatches(const tessel_cloud *c, const tessel_smooth_params *p,
+                                   const tessel_cloud *out, size_t *unfit)
+{
+    tessel_projector *pr = NULL;
+    CHECK(tessel_projector_create(&pr, c, p) == TESSEL_OK);
+    size_t diff = 0;
+    *unfit = 0;
+    for (size_t i = 0; i < c->count && pr; i++) {
+        float o[3], nn[3];
+        tessel_status ps = tessel_project(pr, c->xyz + 3 * i, o, nn, NULL);
+        *unfit += ps != TESSEL_OK;
+        diff += memcmp(o, out->xyz + 3 * i, sizeof o) != 0 ||
+                (ps == TESSEL_OK && memcmp(nn, out->normals + 3 * i, sizeof nn) != 0);
+    }
+    tessel_projector_destroy(pr);
+    return diff;
+}
+
 /* A smoothing pass finds neighbours with its own grid; the projector uses
  * the kd-tree. Both must give the same neighbours, hence the same bits, on
  * a cloud with uneven density (sparse parts need the outer ring of cells,
@@ -580,24 +600,51 @@ static void test_pass_matches_projector(void)
             p.sigma_w = 8;
         tessel_smooth_stats st;
         CHECK(tessel_smooth(&c, &out, &p, NULL, &st) == TESSEL_OK);
-        tessel_projector *pr = NULL;
-        CHECK(tessel_projector_create(&pr, &c, &p) == TESSEL_OK);
-        size_t diff = 0, ndiff = 0, unfit = 0;
-        for (i = 0; i < n; i++) {
-            float o[3], nn[3];
-            tessel_status ps = tessel_project(pr, c.xyz + 3 * i, o, nn, NULL);
-            unfit += ps != TESSEL_OK;
-            diff += memcmp(o, out.xyz + 3 * i, sizeof o) != 0;
-            ndiff += ps == TESSEL_OK && memcmp(nn, out.normals + 3 * i, sizeof nn) != 0;
-        }
-        CHECK_MSG(diff == 0 && ndiff == 0, "sigma_w %g: %zu of %zu points (%zu normals) differ",
-                  p.sigma_w, diff, n, ndiff);
+        size_t unfit = 0;
+        size_t diff = projector_mismatches(&c, &p, &out, &unfit);
+        CHECK_MSG(diff == 0, "sigma_w %g: %zu of %zu points differ", p.sigma_w, diff, n);
         CHECK(unfit == st.unfit);
         CHECK(st.unfit < n_sparse); /* the sparse sheet has some fits */
-        tessel_projector_destroy(pr);
         tessel_cloud_free(&out);
     }
     tessel_cloud_free(&c);
+}
+
+/* More copies of a point than k make its k-th neighbour distance 0, which
+ * the grid search's threshold once started from (the next query never
+ * ended) and halved towards. Two clouds: 40 copies of one point before a
+ * wavy sheet, and 300 points with 35 copies each. Smoothing must finish
+ * and still agree with the projector bit for bit. */
+static void test_copies_beyond_k(void)
+{
+    rng_state = 15;
+    for (int every = 0; every < 2; every++) {
+        const size_t distinct = every ? 300 : 3000, copies = every ? 35 : 40;
+        size_t n = every ? distinct * copies : copies + distinct;
+        tessel_cloud c, out;
+        CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+        for (size_t i = 0; i < n; i++) {
+            size_t src = every ? i / copies * copies : (i < copies ? 0 : i);
+            if (src != i) {
+                memcpy(c.xyz + 3 * i, c.xyz + 3 * src, 3 * sizeof(float));
+                continue;
+            }
+            double x = urand(), y = urand();
+            c.xyz[3 * i] = (float)x, c.xyz[3 * i + 1] = (float)y;
+            c.xyz[3 * i + 2] = (float)(0.05 * sin(6 * x) + 0.002 * gauss());
+        }
+        tessel_smooth_params p = tessel_smooth_params_default();
+        p.passes = 1;
+        CHECK(p.k < copies);
+        tessel_smooth_stats st;
+        CHECK(tessel_smooth(&c, &out, &p, NULL, &st) == TESSEL_OK);
+        size_t unfit = 0;
+        size_t diff = projector_mismatches(&c, &p, &out, &unfit);
+        CHECK_MSG(diff == 0, "%zu copies: %zu of %zu points differ", copies, diff, n);
+        CHECK(unfit == st.unfit);
+        tessel_cloud_free(&out);
+        tessel_cloud_free(&c);
+    }
 }
 
 /* Beyond the paper: the quadric over the robust plane. On a clean sphere
@@ -846,6 +893,7 @@ int main(void)
     test_projector();
     test_projector_shared_index();
     test_pass_matches_projector();
+    test_copies_beyond_k();
     test_quadric();
     test_lattice_ties();
     test_later_passes();
