@@ -246,6 +246,42 @@ static void test_smooth(void)
     unlink(out);
 }
 
+/* Points the reader drops (NaN, infinite, beyond 1e15) are said: a warning
+ * when enough are left (none with --quiet), and counted in the error when
+ * too few are. */
+static void test_dropped_points(void)
+{
+    char path[512], args[1200];
+    snprintf(path, sizeof path, "%s/keep_dropped.xyz", tmpdir);
+    FILE *f = fopen(path, "w");
+    CHECK(f != NULL);
+    if (!f)
+        return;
+    fprintf(f, "nan 0 0\n0 inf 0\n0 0 1e30\n");
+    for (int i = 0; i < 20; i++)
+        for (int j = 0; j < 20; j++)
+            fprintf(f, "%d %d %g\n", i, j, 0.01 * ((i * 7 + j * 3) % 5));
+    fclose(f);
+    snprintf(args, sizeof args, "reconstruct %s %s/keep_out.ply", path, tmpdir);
+    CHECK(run(args) == 0);
+    CHECK(strstr(slurp("err.txt"), "3 of 403 points dropped: a coordinate NaN") != NULL);
+    snprintf(args, sizeof args, "reconstruct %s %s/keep_out.ply --quiet", path, tmpdir);
+    CHECK(run(args) == 0 && strstr(slurp("err.txt"), "dropped") == NULL);
+
+    f = fopen(path, "w");
+    CHECK(f != NULL);
+    if (!f)
+        return;
+    fprintf(f, "nan 0 0\n0 inf 0\n1 1 1\n2 0 0\n");
+    fclose(f);
+    snprintf(args, sizeof args, "smooth %s %s/keep_out.ply --quiet", path, tmpdir);
+    CHECK(run(args) == 2);
+    CHECK(strstr(slurp("err.txt"), "2 points (2 more dropped: a coordinate NaN") != NULL);
+    remove(path);
+    snprintf(path, sizeof path, "%s/keep_out.ply", tmpdir);
+    remove(path);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/tessel_test_cli_XXXXXX");
@@ -258,6 +294,7 @@ int main(void)
     test_convert_round_trip();
     test_normals();
     test_smooth();
+    test_dropped_points();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
     if (system(cmd) != 0)

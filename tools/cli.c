@@ -48,6 +48,9 @@ void cli_error_status(tessel_status status, const tessel_diag *diag, const char 
         fprintf(stderr, "%s\n", tessel_status_str(status));
 }
 
+/* Why the reader drops a point (tessel_cloud.dropped_nonfinite). */
+#define DROPPED_WHY "a coordinate NaN, infinite or beyond 1e15"
+
 int cli_exit_for_read(tessel_status status)
 {
     if (status == TESSEL_ERR_NOMEM || status == TESSEL_ERR_CANCELLED ||
@@ -56,7 +59,8 @@ int cli_exit_for_read(tessel_status status)
     return CLI_INPUT_ERROR;
 }
 
-int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what)
+int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what,
+                   const cli_common *common)
 {
     tessel_diag diag = {0};
     tessel_status st = tessel_cloud_read(cloud, path, NULL, &diag);
@@ -64,12 +68,20 @@ int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, con
         cli_error_status(st, &diag, path);
         return cli_exit_for_read(st);
     }
+    size_t dropped = cloud->dropped_nonfinite;
     if (cloud->count < min_points) {
-        cli_error("%s: %zu points: %s needs at least %zu", path, cloud->count, what,
-                  min_points);
+        if (dropped)
+            cli_error("%s: %zu points (%zu more dropped: " DROPPED_WHY "): %s needs at least %zu",
+                      path, cloud->count, dropped, what, min_points);
+        else
+            cli_error("%s: %zu points: %s needs at least %zu", path, cloud->count, what,
+                      min_points);
         tessel_cloud_free(cloud);
         return CLI_INPUT_ERROR;
     }
+    if (dropped && !common->quiet)
+        fprintf(stderr, "tessel: warning: %s: %zu of %zu points dropped: " DROPPED_WHY "\n",
+                path, dropped, cloud->count + dropped);
     return CLI_OK;
 }
 

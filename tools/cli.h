@@ -41,9 +41,12 @@ void cli_error_status(tessel_status status, const tessel_diag *diag, const char 
 int cli_exit_for_read(tessel_status status);
 int cli_exit_for_write(tessel_status status);
 /* Reads the cloud at path, printing any error. With fewer than min_points
- * points it says "PATH: N points: WHAT needs at least MIN" and frees the
- * cloud. Returns CLI_OK or the exit code. */
-int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what);
+ * points it says "PATH: N points: WHAT needs at least MIN" (and how many the
+ * reader dropped) and frees the cloud. Points the reader dropped (a
+ * coordinate NaN, infinite or beyond 1e15) get a warning unless
+ * common->quiet. Returns CLI_OK or the exit code. */
+int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what,
+                   const cli_common *common);
 
 /* If argv[*i] is a common option (--threads N, --quiet, --json), consumes
  * it (and its value) and returns 1; 0 when it is not one; -1 on a bad

@@ -226,7 +226,7 @@ int cmd_reconstruct_smooth(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    int rc = cli_read_cloud(in, &cloud, 3, "the smooth method");
+    int rc = cli_read_cloud(in, &cloud, 3, "the smooth method", &common);
     if (rc != CLI_OK)
         return rc;
     double t_read = cli_now() - t0;

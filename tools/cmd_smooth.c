@@ -187,7 +187,7 @@ int cmd_smooth(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0}, smooth = {0};
-    int rc = cli_read_cloud(in, &cloud, 3, "smoothing");
+    int rc = cli_read_cloud(in, &cloud, 3, "smoothing", &common);
     if (rc != CLI_OK)
         return rc;
     cli_progress prog;
@@ -256,7 +256,7 @@ int cmd_simplify(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0}, smooth = {0}, reps = {0};
-    int rc = cli_read_cloud(in, &cloud, 3, "simplification");
+    int rc = cli_read_cloud(in, &cloud, 3, "simplification", &common);
     if (rc != CLI_OK)
         return rc;
     cli_progress prog;
