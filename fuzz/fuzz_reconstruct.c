@@ -1,0 +1,96 @@
+/* libFuzzer target for the reconstruction methods: the input is a small
+ * cloud, built so that the awkward cases come often (points on a coarse
+ * lattice, hence exact duplicates, ties, collinear and coplanar runs; a
+ * scale byte from 1e-6 to 1e6), and one method with some of its options.
+ * Whatever the cloud, a method must return (no crash, no hang: run.sh gives
+ * each input a time limit) and, when it succeeds, give a mesh that
+ * tessel_mesh_check calls valid: manifold, consistently oriented, free of
+ * self-intersections, duplicate and degenerate triangles. The height mode
+ * promises all but the self-intersections: a cloud that is no height field
+ * can fold over itself seen from its plane (tessel.h).
+ *
+ * Input: byte 0 picks the method and options, byte 1 the scale, then three
+ * bytes per point (at most MAX_POINTS): each coordinate is its byte's high
+ * five bits as a lattice step plus its low three bits as a small offset. */
+#include "tessel.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+
+#define MAX_POINTS 400
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+static double coordinate(uint8_t b, double scale)
+{
+    return scale * ((double)(b >> 3) + 0.01 * (double)(b & 7));
+}
+
+static void check_valid(const tessel_mesh *m, int self_intersections)
+{
+    if (m->triangle_count == 0)
+        return;
+    tessel_mesh_report r;
+    tessel_check_params cp = tessel_check_params_default();
+    cp.self_intersections = self_intersections;
+    cp.threads = 1;
+    if (tessel_mesh_check(m, &cp, &r) != TESSEL_OK || !tessel_mesh_report_valid(&r))
+        abort();
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    if (size < 2 + 9)
+        return 0;
+    const uint8_t opt = data[0];
+    const double scale = pow(10.0, (double)(data[1] % 13) - 6.0);
+    size_t n = (size - 2) / 3;
+    if (n > MAX_POINTS)
+        n = MAX_POINTS;
+    tessel_cloud c;
+    if (tessel_cloud_alloc(&c, n, 0, 0) != TESSEL_OK)
+        return 0;
+    for (size_t i = 0; i < 3 * n; i++)
+        c.xyz[i] = (float)coordinate(data[2 + i], scale);
+
+    tessel_mesh m;
+    tessel_status st;
+    switch (opt % 5) {
+    case 0:
+    case 1: { /* greedy: default, or the paper's own triangles */
+        tessel_greedy_params p = tessel_greedy_params_default();
+        p.mu = 1.5 + (double)((opt >> 3) & 7) * 0.5;
+        p.min_angle = (opt & 0x40) ? 10.0 : 0.0;
+        if (opt % 5 == 1)
+            p.flip = 0, p.orient_check = 0, p.max_hole = 0;
+        st = tessel_reconstruct_greedy_mesh(&c, &p, NULL, &m, NULL);
+        break;
+    }
+    case 2: { /* greedy with the axis plane */
+        tessel_greedy_params p = tessel_greedy_params_default();
+        p.plane = TESSEL_GREEDY_PLANE_AXIS;
+        st = tessel_reconstruct_greedy_mesh(&c, &p, NULL, &m, NULL);
+        break;
+    }
+    case 3: { /* height field */
+        tessel_fixed_plane_params p = tessel_fixed_plane_params_default();
+        p.threads = 1;
+        st = tessel_reconstruct_fixed_plane_mesh(&c, &p, NULL, &m, NULL);
+        break;
+    }
+    default: { /* the smooth method */
+        tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
+        p.threads = 1;
+        p.refine.rounds = (opt >> 3) & 1 ? 2 : 0;
+        st = tessel_reconstruct_smooth(&c, &p, NULL, &m, NULL);
+        break;
+    }
+    }
+    if (st == TESSEL_OK) {
+        check_valid(&m, opt % 5 != 3);
+        tessel_mesh_free(&m);
+    }
+    tessel_cloud_free(&c);
+    return 0;
+}
