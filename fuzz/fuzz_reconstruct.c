@@ -18,7 +18,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 
-#define MAX_POINTS 400
+#define MAX_POINTS 3000
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -83,6 +83,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
         p.threads = 1;
         p.refine.rounds = (opt >> 3) & 1 ? 2 : 0;
+        if ((opt >> 4) & 1) /* the front in tiles and their seams */
+            p.front.tile_points = 256;
         st = tessel_reconstruct_smooth(&c, &p, NULL, &m, NULL);
         break;
     }
