@@ -236,6 +236,18 @@ static int cmp_double(const void *a, const void *b)
     return x < y ? -1 : x > y;
 }
 
+/* Distance of every point of c to the mesh, into d. */
+static void point_distances(const tri_grid *g, const tessel_cloud *c, double *d)
+{
+#pragma omp parallel for schedule(dynamic, 1024)
+    for (size_t i = 0; i < c->count; i++) {
+        double p[3];
+        for (int a = 0; a < 3; a++)
+            p[a] = c->xyz[3 * i + a] + c->offset[a] - g->m->offset[a];
+        d[i] = mesh_distance(g, p);
+    }
+}
+
 /* RMS, max and (when med is not NULL) median distance of the cloud's
  * points to the mesh (world coordinates). */
 static void cloud_distance3(const tri_grid *g, const tessel_cloud *c, double *rms, double *mx,
@@ -246,13 +258,7 @@ static void cloud_distance3(const tri_grid *g, const tessel_cloud *c, double *rm
         fprintf(stderr, "out of memory\n");
         exit(1);
     }
-#pragma omp parallel for schedule(dynamic, 1024)
-    for (size_t i = 0; i < c->count; i++) {
-        double p[3];
-        for (int a = 0; a < 3; a++)
-            p[a] = c->xyz[3 * i + a] + c->offset[a] - g->m->offset[a];
-        d[i] = mesh_distance(g, p);
-    }
+    point_distances(g, c, d);
     double s = 0, m = 0;
     for (size_t i = 0; i < c->count; i++) {
         s += d[i] * d[i];
@@ -495,18 +501,6 @@ static double segment_distance(const double *s, const double p[3])
         r += x * x;
     }
     return sqrt(r);
-}
-
-/* Distance of every point of c to the mesh, into d. */
-static void point_distances(const tri_grid *g, const tessel_cloud *c, double *d)
-{
-#pragma omp parallel for schedule(dynamic, 1024)
-    for (size_t i = 0; i < c->count; i++) {
-        double p[3];
-        for (int a = 0; a < 3; a++)
-            p[a] = c->xyz[3 * i + a] + c->offset[a] - g->m->offset[a];
-        d[i] = mesh_distance(g, p);
-    }
 }
 
 /* RMS distance to the reference before (c) and after (s) smoothing, by the
