@@ -7,7 +7,9 @@
  * tessel_mesh_check calls valid: manifold, consistently oriented, free of
  * self-intersections, duplicate and degenerate triangles. The height mode
  * promises all but the self-intersections: a cloud that is no height field
- * can fold over itself seen from its plane (tessel.h).
+ * can fold over itself seen from its plane (tessel.h). With the option
+ * byte's top bit, the methods that take a thread count run again on two
+ * threads and must give the same mesh, bit for bit.
  *
  * Input: byte 0 picks the method and options, byte 1 the scale, then three
  * bytes per point (at most MAX_POINTS): each coordinate is its byte's high
@@ -17,6 +19,7 @@
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define MAX_POINTS 3000
 
@@ -37,6 +40,22 @@ static void check_valid(const tessel_mesh *m, int self_intersections)
     cp.threads = 1;
     if (tessel_mesh_check(m, &cp, &r) != TESSEL_OK || !tessel_mesh_report_valid(&r))
         abort();
+}
+
+/* The same call with two threads must give the same status and, on
+ * success, the same mesh, bit for bit; frees m2. */
+static void same_result(tessel_status s1, const tessel_mesh *m1, tessel_status s2,
+                        tessel_mesh *m2)
+{
+    if (s1 != s2)
+        abort();
+    if (s2 != TESSEL_OK)
+        return;
+    if (m1->vertex_count != m2->vertex_count || m1->triangle_count != m2->triangle_count ||
+        memcmp(m1->xyz, m2->xyz, 3 * m1->vertex_count * sizeof *m1->xyz) != 0 ||
+        memcmp(m1->triangles, m2->triangles, 3 * m1->triangle_count * sizeof *m1->triangles) != 0)
+        abort();
+    tessel_mesh_free(m2);
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
@@ -77,6 +96,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         tessel_fixed_plane_params p = tessel_fixed_plane_params_default();
         p.threads = 1;
         st = tessel_reconstruct_fixed_plane_mesh(&c, &p, NULL, &m, NULL);
+        if (opt & 0x80) {
+            p.threads = 2;
+            tessel_mesh m2;
+            same_result(st, &m, tessel_reconstruct_fixed_plane_mesh(&c, &p, NULL, &m2, NULL),
+                        &m2);
+        }
         break;
     }
     default: { /* the smooth method */
@@ -86,6 +111,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         if ((opt >> 4) & 1) /* the front in tiles and their seams */
             p.front.tile_points = 256;
         st = tessel_reconstruct_smooth(&c, &p, NULL, &m, NULL);
+        if (opt & 0x80) {
+            p.threads = 2;
+            tessel_mesh m2;
+            same_result(st, &m, tessel_reconstruct_smooth(&c, &p, NULL, &m2, NULL), &m2);
+        }
         break;
     }
     }
