@@ -221,7 +221,7 @@ int cmd_reconstruct_fixed(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    int rc = cli_read_cloud(in, &cloud, 0, NULL, &common);
+    int rc = cli_read_cloud(in, &cloud, 3, "a surface", &common);
     if (rc != CLI_OK)
         return rc;
     double t_read = cli_now() - t0;
