@@ -182,6 +182,15 @@ static int fp_facing_exact(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b,
     return x->orient > 0 ? s > 0.0 : s < 0.0;
 }
 
+/* Whether p lies in the closed triangle (a, b, c), a facing one, seen along
+ * the projection direction: no edge has p strictly on its outer side. */
+static int fp_covers(const fp_ctx *x, const fp_vrec *a, const fp_vrec *b, const fp_vrec *c,
+                     const fp_vrec *p)
+{
+    return !fp_facing_exact(x, b, a, p) && !fp_facing_exact(x, c, b, p) &&
+           !fp_facing_exact(x, a, c, p);
+}
+
 /* The same, first in float: when |s| exceeds 1e-5 of the sum of the
  * magnitudes of its terms (float rounding is below 1e-6 of it), the float
  * sign is the exact one; only near-degenerate triangles take the double
@@ -273,6 +282,20 @@ static uint8_t fp_block(const fp_ctx *x, const fp_vrec *A, const fp_vrec *B,
         code = best_code;
         edges_fail = best_fail;
         cnt->folded += best_folded;
+        /* One triangle of the quad: the fourth point, which other blocks'
+         * triangles use, must lie outside it, or those triangles would
+         * overlap it seen along the projection direction (a quad folded at
+         * that point whose other diagonal failed the edge test). */
+        if (best_made == 1) {
+            int t0 = (code & FP_T0) != 0;
+            int inside = code & FP_DIAG_BC
+                             ? (t0 ? fp_covers(x, A, B, C, D) : fp_covers(x, B, D, C, A))
+                             : (t0 ? fp_covers(x, A, B, D, C) : fp_covers(x, A, D, C, B));
+            if (inside) {
+                code &= (unsigned)~(FP_T0 | FP_T1);
+                cnt->folded++;
+            }
+        }
     } else {
         want = 1;
         int e;
@@ -805,8 +828,28 @@ static int fp_overlap2(const double a[3][2], const double b[3][2])
     return 1;
 }
 
+/* Two triangles meet in space beyond their shared vertices or edge: a
+ * triangle that only touches another in projection can still do that, as
+ * when its edge runs along part of the other's (a T-junction; on lattice
+ * data the filled point can lie exactly on a neighbour's edge). Exact; both
+ * triangles passed the facing test, so neither is degenerate. */
+static int fp_meet3(const uint32_t ia[3], const double pa[3][3], const uint32_t ib[3],
+                    const double pb[3][3])
+{
+    for (int k = 0; k < 3; k++) {
+        double lo = fmin(pa[0][k], fmin(pa[1][k], pa[2][k]));
+        double hi = fmax(pa[0][k], fmax(pa[1][k], pa[2][k]));
+        if (fmax(pb[0][k], fmax(pb[1][k], pb[2][k])) < lo ||
+            fmin(pb[0][k], fmin(pb[1][k], pb[2][k])) > hi)
+            return 0;
+    }
+    const double *qa[3] = {pa[0], pa[1], pa[2]}, *qb[3] = {pb[0], pb[1], pb[2]};
+    return tsl_triangles_intersect(ia, qa, ib, qb);
+}
+
 /* The triangles of the blocks round each filled dexel that use its point
- * are dropped when they overlap another triangle in projection. */
+ * are dropped when they overlap another triangle in projection or meet it
+ * in space beyond shared vertices and edges. */
 static void fp_untangle(const fp_ctx *x, uint8_t *codes, const uint32_t *slots, size_t n,
                         size_t *dropped)
 {
@@ -842,7 +885,8 @@ static void fp_untangle(const fp_ctx *x, uint8_t *codes, const uint32_t *slots, 
                 pr.e1[k] = -pr.e1[k];
         size_t blk[MAXT];
         int tt[MAXT], mine[MAXT];
-        double pt[MAXT][3][2];
+        double pt[MAXT][3][2], p3[MAXT][3][3];
+        uint32_t ids[MAXT][3];
         int nt = 0;
         for (int dr = -R; dr <= R; dr++) {
             for (int dc = -R; dc <= R; dc++) {
@@ -869,6 +913,8 @@ static void fp_untangle(const fp_ctx *x, uint8_t *codes, const uint32_t *slots, 
                         uint64_t v = fp_corner(x, b, fp_tri_corners[code & 1][k][j]);
                         uint32_t i = x->idx[v];
                         mine[nt] |= i == pidx;
+                        ids[nt][j] = i;
+                        tsl_load(x->xyz + 3 * (size_t)i, p3[nt][j]);
                         /* counter-clockwise in the projection */
                         int jj = x->orient < 0 && j ? 3 - j : j;
                         fp_project(&pr, x->xyz + 3 * (size_t)i, pt[nt][jj]);
@@ -883,7 +929,7 @@ static void fp_untangle(const fp_ctx *x, uint8_t *codes, const uint32_t *slots, 
             for (int b = 0; b < nt; b++) {
                 if (b == a || !(codes[blk[b]] & (tt[b] ? FP_T1 : FP_T0)))
                     continue;
-                if (fp_overlap2(pt[a], pt[b])) {
+                if (fp_overlap2(pt[a], pt[b]) || fp_meet3(ids[a], p3[a], ids[b], p3[b])) {
                     codes[blk[a]] &= (uint8_t)~(tt[a] ? FP_T1 : FP_T0);
                     (*dropped)++;
                     break;

@@ -625,6 +625,46 @@ static void test_uniform_sampling(void)
     tessel_cloud_free(&c);
 }
 
+/* A lattice with one or two points per site at heights one step apart
+ * (two interleaved layers, no height field), flat and on a slope. Filled
+ * dexels then take points that lie exactly on a neighbour's edge; before
+ * the exact test in space, their triangles met those edges in T-junctions
+ * (3 to 25 self-intersecting pairs on such clouds). */
+static void test_lattice_layers(void)
+{
+    for (int slope = 0; slope < 2; slope++) {
+        for (uint64_t seed = 1; seed <= 3; seed++) {
+            enum { N = 200 };
+            tessel_cloud c;
+            CHECK(tessel_cloud_alloc(&c, 2 * N * N, 0, 0) == TESSEL_OK);
+            rng_state = seed;
+            size_t n = 0;
+            for (int i = 0; i < N; i++)
+                for (int j = 0; j < N; j++) {
+                    int copies = 1 + (int)(rng_next() % 2);
+                    for (int k = 0; k < copies; k++) {
+                        c.xyz[3 * n] = (float)i;
+                        c.xyz[3 * n + 1] = (float)j;
+                        c.xyz[3 * n + 2] =
+                            (float)(slope ? 0.1 * i + 0.05 * j : 0.0) + (float)(rng_next() % 2);
+                        n++;
+                    }
+                }
+            c.count = n;
+            tessel_fixed_plane_params p = tessel_fixed_plane_params_default();
+            tris m;
+            tessel_fixed_plane_stats st;
+            CHECK(run(&c, &p, &m, &st) == TESSEL_OK);
+            CHECK(st.dexels_filled > 0);
+            topo t = check_topology(&m, c.count);
+            CHECK(topology_ok(&t));
+            check_mesh_valid(&c, &p, &m, slope ? "lattice layers on a slope" : "lattice layers");
+            free(m.t);
+            tessel_cloud_free(&c);
+        }
+    }
+}
+
 static void test_range_room(void)
 {
     const double sigma = 0.004;
@@ -1087,8 +1127,9 @@ static void test_cli(void)
         CHECK(0);
         return;
     }
-    char grid_in[64], terrain_in[64], out[64], out2[64];
+    char grid_in[64], terrain_in[64], tiny_in[64], out[64], out2[64];
     snprintf(grid_in, sizeof grid_in, "%s/grid.ply", dir);
+    snprintf(tiny_in, sizeof tiny_in, "%s/tiny.xyz", dir);
     snprintf(terrain_in, sizeof terrain_in, "%s/terrain.ply", dir);
     snprintf(out, sizeof out, "%s/out.ply", dir);
     snprintf(out2, sizeof out2, "%s/out2.ply", dir);
@@ -1170,6 +1211,16 @@ static void test_cli(void)
     CHECK(run_cli(8, a9) == 1);
     const char *a10[] = {"reconstruct", "/nonexistent/in.ply", out2, "--mode", "height"};
     CHECK(run_cli(5, a10) == 2);
+    /* fewer than three points: an error, as for the other methods, not an
+     * empty mesh */
+    FILE *tf = fopen(tiny_in, "w");
+    CHECK(tf != NULL);
+    if (tf) {
+        fputs("0 0 0\n1 0 0\n", tf);
+        fclose(tf);
+    }
+    const char *a12[] = {"reconstruct", tiny_in, out2, "--mode", "height", "--quiet"};
+    CHECK(run_cli(6, a12) == 2);
     FILE *f = fopen(out2, "rb");
     CHECK(f == NULL);
     if (f)
@@ -1180,6 +1231,7 @@ static void test_cli(void)
     tessel_cloud_free(&c);
     remove(grid_in);
     remove(terrain_in);
+    remove(tiny_in);
     remove(out);
     remove(out2);
     rmdir(dir);
@@ -1191,6 +1243,7 @@ int main(void)
     test_paraboloid_noise();
     test_step_open();
     test_uniform_sampling();
+    test_lattice_layers();
     test_range_room();
     test_grid_room();
     test_poles();
