@@ -6,9 +6,12 @@
  * each input a time limit) and, when it succeeds, give a mesh that
  * tessel_mesh_check calls valid: manifold, consistently oriented, free of
  * self-intersections, duplicate and degenerate triangles. tessel.h promises
- * the fixed-plane modes all but the last three, for clouds that are no
- * height field; they are checked here all the same (each find so far was a
- * fault, now mended: docs/fixed_plane.md). With the option byte's top bit,
+ * the fixed-plane modes all but the self-intersections, for clouds that are
+ * no height field; height and range mode are checked for them all the same
+ * (each find so far was a fault, now mended: docs/fixed_plane.md). Grid
+ * mode is not: a grid of arbitrary points is no camera image, and its
+ * triangles, all facing the viewpoint, can still cross. With the option
+ * byte's top bit,
  * the methods that take a thread count run again on two threads and must
  * give the same mesh, bit for bit.
  *
@@ -31,15 +34,34 @@ static double coordinate(uint8_t b, double scale)
     return scale * ((double)(b >> 3) + 0.01 * (double)(b & 7));
 }
 
-static void check_valid(const tessel_mesh *m)
+static void check_valid(const tessel_mesh *m, int self_intersections)
 {
     if (m->triangle_count == 0)
         return;
     tessel_mesh_report r;
     tessel_check_params cp = tessel_check_params_default();
+    cp.self_intersections = self_intersections;
     cp.threads = 1;
     if (tessel_mesh_check(m, &cp, &r) != TESSEL_OK || !tessel_mesh_report_valid(&r))
         abort();
+}
+
+/* The cloud's points as the rows of a grid of w columns (the last,
+ * incomplete row dropped); 0 when too few points or no memory. */
+static int organize(tessel_cloud *c, uint32_t w)
+{
+    uint32_t h = (uint32_t)(c->count / w);
+    if (h < 2)
+        return 0;
+    c->grid = malloc((size_t)w * h * sizeof *c->grid);
+    if (!c->grid)
+        return 0;
+    for (uint32_t i = 0; i < w * h; i++)
+        c->grid[i] = i;
+    c->count = (size_t)w * h;
+    c->width = w;
+    c->height = h;
+    return 1;
 }
 
 /* The same call with two threads must give the same status and, on
@@ -75,6 +97,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 
     tessel_mesh m;
     tessel_status st;
+    int grid = 0;
     switch (opt % 5) {
     case 0:
     case 1: { /* greedy: default, or the paper's own triangles */
@@ -92,13 +115,23 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         st = tessel_reconstruct_greedy_mesh(&c, &p, NULL, &m, NULL);
         break;
     }
-    case 3: { /* height field, or with bit 3 a range scan from the lattice's centre */
+    case 3: { /* height field; with bit 3 a range scan from the lattice's centre, with
+               * bit 4 as well the points as an organized grid of 4 to 16 columns seen
+               * from there */
         tessel_fixed_plane_params p = tessel_fixed_plane_params_default();
         p.threads = 1;
         if (opt & 0x08) {
             p.mode = TESSEL_FIXED_PLANE_RANGE;
             p.use_viewpoint = 1;
             p.viewpoint[0] = p.viewpoint[1] = p.viewpoint[2] = coordinate(128, scale);
+        }
+        if ((opt & 0x18) == 0x18 && !organize(&c, 4 + 4 * ((opt >> 5) & 3))) {
+            tessel_cloud_free(&c);
+            return 0;
+        }
+        if ((opt & 0x18) == 0x18) {
+            p.mode = TESSEL_FIXED_PLANE_GRID;
+            grid = 1;
         }
         st = tessel_reconstruct_fixed_plane_mesh(&c, &p, NULL, &m, NULL);
         if (opt & 0x80) {
@@ -125,7 +158,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     }
     if (st == TESSEL_OK) {
-        check_valid(&m);
+        check_valid(&m, !grid);
         tessel_mesh_free(&m);
     }
     tessel_cloud_free(&c);
