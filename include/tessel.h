@@ -820,8 +820,12 @@ typedef struct tessel_fixed_plane_stats {
  * viewpoint (range, grid). The output is edge- and vertex-manifold and
  * consistently oriented. Grid mode needs an organized cloud (cloud->grid)
  * and fails with TESSEL_ERR_INVALID_ARG, logging why, on an unorganized
- * one; range mode needs a viewpoint. params and stats may be NULL; the
- * cloud must have fewer than 2^32 points. */
+ * one; range mode needs a viewpoint. When more triangles face away from
+ * the viewpoint (height: the plane's normal) than are made, a warning is
+ * logged: the input is not what the mode assumes (a wrong viewpoint, a grid
+ * that is not the camera's image, no height field), and the mesh may cross
+ * itself. params and stats may be NULL; the cloud must have fewer than 2^32
+ * points. */
 TESSEL_API tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
                                                         const tessel_fixed_plane_params *params,
                                                         const tessel_callbacks *callbacks,

@@ -810,6 +810,12 @@ static void test_poles(void)
 
 /* A pinhole depth camera looking along +z at a wall with a box in front,
  * NaN (missing) where nothing was returned. */
+static void count_warnings(void *user, tessel_log_level level, const char *message)
+{
+    (void)message;
+    *(int *)user += level == TESSEL_LOG_WARNING;
+}
+
 static void test_grid_camera(void)
 {
     const uint32_t W = 160, H = 120;
@@ -871,7 +877,31 @@ static void test_grid_camera(void)
     CHECK_MSG(m.n > 2 * (W - 1) * (H - 1) - 2 * 2 * (160 + 120) - 2 * 49,
               "triangles %zu", m.n);
 
-    /* shorter diagonal: stretch the grid so that one diagonal is longer */
+    free(m.t);
+    memset(&m, 0, sizeof m);
+
+    /* The same points with the grid scrambled are no camera image: most
+     * triangles face away, and the library says so (the camera's own grid
+     * above: no warning). */
+    int warned = 0;
+    tessel_callbacks cb = {NULL, count_warnings, &warned};
+    CHECK(tessel_reconstruct_fixed_plane(&c, &p, &cb, &(tessel_triangle_sink){collect, &m},
+                                         &st) == TESSEL_OK);
+    CHECK(warned == 0);
+    free(m.t);
+    memset(&m, 0, sizeof m);
+    for (size_t i = (size_t)W * H - 1; i > 0; i--) {
+        size_t j = rng_next() % (i + 1);
+        uint32_t g = c.grid[i];
+        c.grid[i] = c.grid[j];
+        c.grid[j] = g;
+    }
+    CHECK(tessel_reconstruct_fixed_plane(&c, &p, &cb, &(tessel_triangle_sink){collect, &m},
+                                         &st) == TESSEL_OK);
+    CHECK_MSG(warned == 1 && st.triangles_folded > st.triangles, "warned %d, folded %zu of %zu",
+              warned, st.triangles_folded, st.triangles_folded + st.triangles);
+    topo ts = check_topology(&m, c.count);
+    CHECK(topology_ok(&ts));
     free(m.t);
     free(labels);
     tessel_cloud_free(&c);
