@@ -9,8 +9,10 @@
  * one and two threads, and its counts agree with each other; measured
  * against itself as reference a mesh has F-score 100. A mesh the check
  * calls valid stays valid through tessel_refine (tessel.h: every split and
- * flip keeps it manifold, oriented and free of self-intersections); any
- * other mesh is refused or refined without a crash.
+ * flip keeps it manifold, oriented and free of self-intersections), and
+ * greedy projection started from it as existing triangles adds only
+ * triangles that keep it valid; any other mesh is refused or refined
+ * without a crash.
  *
  * Input: byte 0 options, byte 1 the scale, byte 2 the vertex count (3 to
  * 64), three bytes per vertex (as fuzz_reconstruct: high five bits a
@@ -88,6 +90,55 @@ static void consistent(const tessel_mesh_report *r, size_t triangles)
         abort();
 }
 
+typedef struct tri_list {
+    uint32_t *t;
+    size_t n, cap;
+} tri_list;
+
+static tessel_status collect(void *user, const uint32_t *t, size_t count)
+{
+    tri_list *l = user;
+    if (l->n + count > l->cap) {
+        size_t cap = 2 * (l->n + count);
+        uint32_t *p = realloc(l->t, 3 * cap * sizeof *p);
+        if (!p)
+            return TESSEL_ERR_NOMEM;
+        l->t = p;
+        l->cap = cap;
+    }
+    memcpy(l->t + 3 * l->n, t, 3 * count * sizeof *t);
+    l->n += count;
+    return TESSEL_OK;
+}
+
+/* Greedy projection started from the valid mesh m as existing triangles
+ * (how tiles are stitched): m's triangles and the new ones together must
+ * be valid. */
+static void grow_from(const tessel_mesh *m, const tessel_cloud *cloud)
+{
+    tessel_greedy_params gp = tessel_greedy_params_default();
+    gp.existing = m->triangles;
+    gp.existing_count = m->triangle_count;
+    tri_list added = {NULL, 0, 0};
+    tessel_triangle_sink sink = {collect, &added};
+    tessel_status st = tessel_reconstruct_greedy(cloud, &gp, NULL, &sink, NULL);
+    if (st != TESSEL_OK && st != TESSEL_ERR_INVALID_ARG && st != TESSEL_ERR_TOO_FEW_POINTS)
+        abort();
+    tessel_mesh all;
+    if (st == TESSEL_OK &&
+        tessel_mesh_alloc(&all, cloud->count, m->triangle_count + added.n, 0, 0) == TESSEL_OK) {
+        memcpy(all.xyz, cloud->xyz, 3 * cloud->count * sizeof *all.xyz);
+        memcpy(all.triangles, m->triangles, 3 * m->triangle_count * sizeof *all.triangles);
+        memcpy(all.triangles + 3 * m->triangle_count, added.t,
+               3 * added.n * sizeof *all.triangles);
+        tessel_mesh_report r = check(&all, NULL, NULL, 1);
+        if (!tessel_mesh_report_valid(&r))
+            abort();
+        tessel_mesh_free(&all);
+    }
+    free(added.t);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     if (size < 3)
@@ -157,6 +208,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             }
         }
     }
+    if ((opt & 0x60) == 0x60 && tessel_mesh_report_valid(&r1))
+        grow_from(&m, &cloud);
     if (opt & 4) {
         tessel_refine_params rp = tessel_refine_params_default();
         rp.rounds = 1 + ((opt >> 3) & 1);

@@ -931,6 +931,36 @@ static tessel_status vertex_normals(const rf *r, double **out)
     return TESSEL_OK;
 }
 
+/* Cells covered by the triangles' boxes in a grid of the given cell from
+ * origin, counted up to limit. */
+static double cells_covered(const rf *r, const double origin[3], double cell, double limit)
+{
+    double total = 0.0;
+    for (size_t t = 0; t < r->nt && total <= limit; t++) {
+        double lo[3], hi[3], cells = 1.0;
+        tri_box(r, (uint32_t)t, lo, hi);
+        for (int c = 0; c < 3; c++)
+            cells *= floor((hi[c] - origin[c]) / cell) - floor((lo[c] - origin[c]) / cell) + 1.0;
+        total += cells;
+    }
+    return total;
+}
+
+/* The cell, doubled until the triangles cover at most 16 cells each on
+ * average: a caller's mesh may hold a triangle far larger than its mean
+ * edge (one large triangle among small ones filled gigabytes with cells).
+ * The grid only culls candidates, so the cell changes no result; the
+ * meshes of the pipeline keep two mean edges. */
+static double grid_cell(const rf *r, const double origin[3], double cell)
+{
+    if (!(cell > 0.0) || !isfinite(cell))
+        return cell; /* tsl_trigrid_init's fallback */
+    const double limit = 16.0 * (double)r->nt + 1024.0;
+    while (cells_covered(r, origin, cell, limit) > limit)
+        cell *= 2.0;
+    return cell;
+}
+
 /* A fresh grid for the round, with cells two mean edges wide: the edges
  * shrink from round to round. It boxes the triangles, not every vertex: a
  * point no triangle uses (an outlier the front left out) must not stretch
@@ -954,7 +984,7 @@ static tessel_status build_grid(rf *r)
         mean_len += tsl_norm(d);
     }
     mean_len /= (double)r->nt;
-    tessel_status st = tsl_trigrid_init(&r->grid, lo, hi, 2.0 * mean_len);
+    tessel_status st = tsl_trigrid_init(&r->grid, lo, hi, grid_cell(r, lo, 2.0 * mean_len));
     for (size_t t = 0; t < r->nt && !st; t++)
         st = grid_add(r, (uint32_t)t);
     return st;

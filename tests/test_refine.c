@@ -16,6 +16,7 @@
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 
 static tessel_mesh_report check(const tessel_mesh *m)
 {
@@ -241,6 +242,56 @@ static void test_refine_plane(void)
     tessel_mesh_free(&m);
     tessel_cloud_free(&coarse);
     tessel_cloud_free(&dense);
+}
+
+static long peak_rss_kb(void)
+{
+    struct rusage u;
+    return getrusage(RUSAGE_SELF, &u) == 0 ? u.ru_maxrss : 0; /* KB on Linux */
+}
+
+/* A caller's mesh with one triangle far larger than its mean edge: a fine
+ * patch (edges of 0.001) and, apart from it, a triangle 10 across. The
+ * refinement's triangle grid had cells of two mean edges, and that triangle
+ * alone covered 1.6e7 of them (about 500 MB); the grid must stay small. */
+static void test_refine_large_triangle(void)
+{
+    enum { N = 20 };
+    tessel_mesh m;
+    size_t nt = 2 * (N - 1) * (N - 1) + 1;
+    CHECK(tessel_mesh_alloc(&m, N * N + 3, nt, 0, 0) == TESSEL_OK);
+    for (int y = 0; y < N; y++)
+        for (int x = 0; x < N; x++) {
+            float *p = m.xyz + 3 * (y * N + x);
+            p[0] = 0.001f * (float)x;
+            p[1] = 0.001f * (float)y;
+            p[2] = 0.0f;
+        }
+    const float big[9] = {20, 10, 10, 10, 20, 10, 10, 10, 20};
+    memcpy(m.xyz + 3 * N * N, big, sizeof big);
+    size_t t = 0;
+    for (uint32_t y = 0; y + 1 < N; y++)
+        for (uint32_t x = 0; x + 1 < N; x++) {
+            uint32_t a = y * N + x, b = a + 1, c = a + N, d = c + 1;
+            uint32_t two[6] = {a, b, d, a, d, c};
+            memcpy(m.triangles + 3 * t, two, sizeof two);
+            t += 2;
+        }
+    uint32_t last[3] = {N * N, N * N + 1, N * N + 2};
+    memcpy(m.triangles + 3 * t, last, sizeof last);
+    tessel_cloud cloud;
+    CHECK(tessel_cloud_alloc(&cloud, m.vertex_count, 0, 0) == TESSEL_OK);
+    memcpy(cloud.xyz, m.xyz, 3 * m.vertex_count * sizeof *m.xyz);
+    long before = peak_rss_kb();
+    tessel_refine_params rp = tessel_refine_params_default();
+    rp.rounds = 1;
+    CHECK(tessel_refine(&m, &cloud, NULL, &rp, NULL, NULL) == TESSEL_OK);
+    long grown = peak_rss_kb() - before;
+    CHECK_MSG(grown < 64 * 1024, "peak memory grew by %ld KB", grown);
+    tessel_mesh_report r = check(&m);
+    CHECK(tessel_mesh_report_valid(&r) && r.self_intersections == 0);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&cloud);
 }
 
 static void test_refine_invalid(void)
@@ -535,6 +586,7 @@ int main(void)
     test_refine_rounds();
     test_refine_plane();
     test_refine_invalid();
+    test_refine_large_triangle();
     test_pipeline_sphere();
     test_pipeline_torus();
     test_pipeline_narrow_torus();
