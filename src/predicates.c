@@ -268,6 +268,51 @@ static double orient3d_exact(const double a[3], const double b[3], const double 
     return all[n - 1];
 }
 
+/* a * b - c * d, exactly, as an expansion of at most four terms. */
+static int two_cross(double a, double b, double c, double d, double h[4])
+{
+    double p[2], q[2];
+    int pn = 0, qn = 0;
+    double x, y;
+    two_product(a, b, &x, &y);
+    if (y != 0.0)
+        p[pn++] = y;
+    if (x != 0.0 || pn == 0)
+        p[pn++] = x;
+    two_product(c, d, &x, &y);
+    if (y != 0.0)
+        q[qn++] = -y;
+    if (x != 0.0 || qn == 0)
+        q[qn++] = -x;
+    return expansion_sum(pn, p, qn, q, h);
+}
+
+/* orient3d from its nine differences when they are exact (so from float
+ * inputs, as almost always here): fixed-size expansions, no copies. The
+ * value is exact, like orient3d_exact's; only its low terms may differ. */
+static double orient3d_exact_diffs(double adx, double ady, double adz, double bdx, double bdy,
+                                   double bdz, double cdx, double cdy, double cdz)
+{
+    double bc[4], ca[4], ab[4], t1[8], t2[8], t3[8], s12[16], all[24];
+    int bcn = two_cross(bdx, cdy, cdx, bdy, bc);
+    int can = two_cross(cdx, ady, adx, cdy, ca);
+    int abn = two_cross(adx, bdy, bdx, ady, ab);
+    int n1 = scale_expansion(bcn, bc, adz, t1);
+    int n2 = scale_expansion(can, ca, bdz, t2);
+    int n3 = scale_expansion(abn, ab, cdz, t3);
+    int n12 = expansion_sum(n1, t1, n2, t2, s12);
+    int n = expansion_sum(n12, s12, n3, t3, all);
+    return all[n - 1];
+}
+
+/* Whether a - b is exact in double. */
+static inline bool diff_exact(double a, double b)
+{
+    double x, y;
+    two_diff(a, b, &x, &y);
+    return y == 0.0;
+}
+
 double tsl_orient3d(const double a[3], const double b[3], const double c[3], const double d[3])
 {
     double adx = a[0] - d[0], bdx = b[0] - d[0], cdx = c[0] - d[0];
@@ -283,6 +328,12 @@ double tsl_orient3d(const double a[3], const double b[3], const double c[3], con
     double bound = o3d_bound_a * permanent;
     if (det > bound || -det > bound)
         return det;
+    bool exact = true;
+    for (int k = 0; k < 3; k++)
+        exact = exact && diff_exact(a[k], d[k]) && diff_exact(b[k], d[k]) &&
+                diff_exact(c[k], d[k]);
+    if (exact)
+        return orient3d_exact_diffs(adx, ady, adz, bdx, bdy, bdz, cdx, cdy, cdz);
     return orient3d_exact(a, b, c, d);
 }
 

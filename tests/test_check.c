@@ -178,6 +178,58 @@ static void test_orient3d(void)
     CHECK_MSG(nonzero == 0, "%d coplanar quadruples not zero", nonzero);
 }
 
+/* Integer multiples of 2^-16 (a grid of floats, as the library's
+ * coordinates are): differences below 2^28 steps, so the determinant is
+ * exact in 128-bit integers, an oracle for the sign. */
+__extension__ typedef __int128 i128;
+
+static int exact_sign3(const double a[3], const double b[3], const double c[3],
+                       const double d[3])
+{
+    int64_t m[3][3];
+    for (int k = 0; k < 3; k++) {
+        m[0][k] = (int64_t)((a[k] - d[k]) * 65536.0);
+        m[1][k] = (int64_t)((b[k] - d[k]) * 65536.0);
+        m[2][k] = (int64_t)((c[k] - d[k]) * 65536.0);
+    }
+    i128 det = (i128)m[0][2] * ((i128)m[1][0] * m[2][1] - (i128)m[2][0] * m[1][1]) +
+               (i128)m[1][2] * ((i128)m[2][0] * m[0][1] - (i128)m[0][0] * m[2][1]) +
+               (i128)m[2][2] * ((i128)m[0][0] * m[1][1] - (i128)m[1][0] * m[0][1]);
+    return (det > 0) - (det < 0);
+}
+
+static double grid_coord(uint64_t r) { return (double)((int64_t)(r % (1u << 24)) - (1 << 23)) / 65536.0; }
+
+static void test_orient3d_near_planes(void)
+{
+    /* Points d = a + i (b - a) + j (c - a) exactly on the plane of three
+     * grid points, and the same moved by one grid step: zero or a sign
+     * decided by one unit of a 75-bit product. The coordinates' differences
+     * are exact in double, the case the exact stage takes first. */
+    uint64_t state = 12345;
+    int wrong = 0, zero = 0;
+    for (int n = 0; n < 100000; n++) {
+        double p[4][3];
+        for (int v = 0; v < 3; v++)
+            for (int k = 0; k < 3; k++) {
+                state = state * 6364136223846793005ull + 1442695040888963407ull;
+                p[v][k] = grid_coord(state >> 20);
+            }
+        state = state * 6364136223846793005ull + 1442695040888963407ull;
+        int i = (int)(state >> 61) - 3, j = (int)((state >> 58) & 7) - 3;
+        int move = (int)((state >> 40) % 3) - 1, axis = (int)((state >> 30) % 3);
+        for (int k = 0; k < 3; k++)
+            p[3][k] = p[0][k] + i * (p[1][k] - p[0][k]) + j * (p[2][k] - p[0][k]) +
+                      (k == axis ? move / 65536.0 : 0.0);
+        int want = exact_sign3(p[0], p[1], p[2], p[3]);
+        double o = tsl_orient3d(p[0], p[1], p[2], p[3]);
+        wrong += ((o > 0) - (o < 0)) != want;
+        zero += want == 0;
+    }
+    CHECK_MSG(wrong == 0, "%d wrong signs", wrong);
+    CHECK_MSG(zero > 30000, "%d coplanar", zero);
+}
+
 /* ---- hand-made meshes ---- */
 
 static const float oct_v[] = {1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1};
@@ -515,6 +567,7 @@ int main(void)
 {
     test_orient2d();
     test_orient3d();
+    test_orient3d_near_planes();
     test_octahedron();
     test_torus_and_cones();
     test_crossing();
