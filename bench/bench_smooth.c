@@ -566,6 +566,9 @@ static const double agg_variants[][4] = {
     {1, 0, 2, 3}, {1, 1, 2, 3}, {1, 1, 3, 3}, {0, 0, 2, 3}, {0, 1, 2, 3}, {0, 1, 2, 2.5}};
 #define N_AGG (sizeof agg_variants / sizeof *agg_variants)
 
+/* The scans with a noisy sample and a reference surface in the data folder. */
+static const char *const names[] = {"bunny", "elephant", "knot2"};
+
 /* DIR/NAME.pd.n05.ply and DIR/NAME.gt.ply; false (with a table row saying
  * so) when either cannot be read. */
 static bool read_data(const char *dir, const char *name, tessel_cloud *c, tessel_mesh *gt)
@@ -588,7 +591,6 @@ static bool read_data(const char *dir, const char *name, tessel_cloud *c, tessel
 /* The section on creases: each file smoothed with the defaults. */
 static void bench_creases(const char *dir)
 {
-    static const char *names[] = {"bunny", "elephant", "knot2"};
     printf("## Where the error is: near the reference's creases (defaults)\n\n");
     printf("Reference edges whose two triangles' normals differ by over %.0f degrees are "
            "creases. Points binned by the distance of their true position (NAME.pd.ply: the "
@@ -629,7 +631,6 @@ static void bench_creases(const char *dir)
 
 static void bench_data(const char *dir, uint32_t passes)
 {
-    static const char *names[] = {"bunny", "elephant", "knot2"};
     double agg_gain[3][N_AGG], agg_time[3][N_AGG];
     bool have[3] = {false, false, false};
     printf("## Accuracy: DIR/NAME.pd.n05.ply against NAME.gt.ply\n\n");
