@@ -646,7 +646,10 @@ typedef struct tessel_recon_summary {
     size_t left_closed_in;       /* inside the surface already built: every
                                     neighbour was completed before it was
                                     reached (typically noise off the
-                                    surface) */
+                                    surface), or the point lies on one of
+                                    its triangles (a point much closer to
+                                    a neighbour than the spacing, passed
+                                    over by the front) */
     size_t left_untriangulated;  /* had free neighbours, but every triangle
                                     through it would have broken the mesh's
                                     validity */

@@ -747,6 +747,54 @@ static void settle_dead(gp *g, uint32_t R, size_t *counter)
     (*counter)++;
 }
 
+/* Whether R lies on a held triangle near it: its foot on the triangle's
+ * plane falls inside the triangle and it is within COVER_HEIGHT of the
+ * triangle's longest edge off that plane. Such a point was passed over by
+ * the front (Invariant 1 breaks where the sampling is not locally uniform:
+ * two points much closer than their neighbours); a front seeded there would
+ * lay a second sheet over the surface. Looks at the triangles of the points
+ * of the last box scan. */
+static int covered(const gp *g, uint32_t R)
+{
+    double pr[3];
+    pos(g, R, pr);
+    size_t nb = g->box_count + g->boxd_count;
+    for (size_t k = 0; k < nb; k++) {
+        uint32_t q = k < g->box_count ? g->box[k].idx : g->boxd[k - g->box_count].idx;
+        for (uint32_t t = g->head[q]; t != NONE;) {
+            const gp_tri *T = &g->tri[t];
+            int kq = tri_pos(T, q);
+            t = T->next[kq];
+            double p[3][3], e[3][3], n[3], d[3];
+            for (int j = 0; j < 3; j++)
+                pos(g, T->v[j], p[j]);
+            double l2 = 0.0;
+            for (int j = 0; j < 3; j++) {
+                tsl_sub(p[(j + 1) % 3], p[j], e[j]);
+                l2 = dmax(l2, tsl_dot(e[j], e[j]));
+            }
+            tsl_cross(e[0], e[1], n);
+            double nn = tsl_dot(n, n);
+            if (!(nn > 0.0))
+                continue;
+            tsl_sub(pr, p[0], d);
+            double h = tsl_dot(n, d);
+            if (h * h > COVER_HEIGHT * COVER_HEIGHT * l2 * nn)
+                continue;
+            int inside = 1;
+            for (int j = 0; j < 3 && inside; j++) {
+                double r[3], c[3];
+                tsl_sub(pr, p[j], r);
+                tsl_cross(e[j], r, c);
+                inside = tsl_dot(c, n) >= 0.0;
+            }
+            if (inside)
+                return 1;
+        }
+    }
+    return 0;
+}
+
 /* A free point as seed (sections 3-4.1: m from its nearest point, PCA
  * plane). Its first triangle joins two angularly consecutive candidates;
  * then it is completed like any fringe point. */
@@ -774,6 +822,10 @@ static tessel_status seed(gp *g, uint32_t R)
         return s;
     size_t done_near = 0;
     done_near = g->boxd_count;
+    if (covered(g, R)) {
+        settle_dead(g, R, &g->sum.left_closed_in);
+        return TESSEL_OK;
+    }
     /* Fewer than SEED_MIN neighbours make a splinter, not a surface. */
     if (g->cand_count < SEED_MIN || !pca_normal(g->cand, g->cand_count, f.n)) {
         settle_dead(g, R, done_near ? &g->sum.left_closed_in : &g->sum.left_untriangulated);

@@ -39,6 +39,9 @@ enum {
 #define GROW_STEPS 2
 /* A seed needs this many candidates (a surface around it, not a splinter). */
 #define SEED_MIN 4
+/* A seed within this fraction of a held triangle's longest edge of its
+ * plane, over the triangle, is taken as passed over (greedy.c, covered). */
+#define COVER_HEIGHT 0.25
 /* Cell edge of the short-triangle grid (the guard's index), in mean
  * spacings. Measured on a 10^5 sphere, man.ply and bunny.pd.n05 against 2,
  * 2.5, 3.5, 4 and 6: 3 is the best or within 1% of it. */

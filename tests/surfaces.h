@@ -22,6 +22,8 @@
  *                        south pole to r_max at the north pole
  *   surf_sphere_fibonacci  n points of the Fibonacci lattice on the unit
  *                        sphere, jittered (fast: for 10^7-point benchmarks)
+ *   surf_sphere_random   n points uniformly at random on the unit sphere,
+ *                        coordinates only (not an even sample)
  *   surf_two_spheres     two unit spheres, centres (0,0,0) and
  *                        (2 + gap,0,0), coordinates only; with
  *                        surf_two_spheres_inward, the percent of a mesh's
@@ -471,6 +473,25 @@ static inline tessel_status surf_sphere_fibonacci(tessel_cloud *c, size_t n, dou
             c->xyz[3 * i + (size_t)k] = (float)(p[k] / l);
             c->normals[3 * i + (size_t)k] = (float)(p[k] / l);
         }
+    }
+    return TESSEL_OK;
+}
+
+/* n points drawn uniformly at random on the unit sphere (no spacing
+ * between them: some pairs come far closer than the mean spacing), without
+ * normals, as a random sampler of a mesh gives them. */
+static inline tessel_status surf_sphere_random(tessel_cloud *c, size_t n, uint64_t seed)
+{
+    memset(c, 0, sizeof *c);
+    tessel_status st = tessel_cloud_alloc(c, n, 0, 0);
+    if (st != TESSEL_OK)
+        return st;
+    surf_rng rng = surf_seed(seed);
+    for (size_t i = 0; i < n; i++) {
+        double p[3] = {surf_gauss(&rng), surf_gauss(&rng), surf_gauss(&rng)};
+        double l = sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+        for (int k = 0; k < 3; k++)
+            c->xyz[3 * i + (size_t)k] = (float)(p[k] / l);
     }
     return TESSEL_OK;
 }
