@@ -128,8 +128,9 @@ static void grow_from(const tessel_mesh *m, const tessel_cloud *cloud)
         tessel_mesh_alloc(&all, cloud->count, m->triangle_count + added.n, 0, 0) == TESSEL_OK) {
         memcpy(all.xyz, cloud->xyz, 3 * cloud->count * sizeof *all.xyz);
         memcpy(all.triangles, m->triangles, 3 * m->triangle_count * sizeof *all.triangles);
-        memcpy(all.triangles + 3 * m->triangle_count, added.t,
-               3 * added.n * sizeof *all.triangles);
+        if (added.n) /* added.t is NULL when nothing was added */
+            memcpy(all.triangles + 3 * m->triangle_count, added.t,
+                   3 * added.n * sizeof *all.triangles);
         tessel_mesh_report r;
         check(&all, NULL, NULL, 1, &r);
         if (!tessel_mesh_report_valid(&r))
