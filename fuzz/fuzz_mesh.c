@@ -127,7 +127,8 @@ static void grow_from(const tessel_mesh *m, const tessel_cloud *cloud)
     if (st == TESSEL_OK &&
         tessel_mesh_alloc(&all, cloud->count, m->triangle_count + added.n, 0, 0) == TESSEL_OK) {
         memcpy(all.xyz, cloud->xyz, 3 * cloud->count * sizeof *all.xyz);
-        memcpy(all.triangles, m->triangles, 3 * m->triangle_count * sizeof *all.triangles);
+        if (m->triangle_count)
+            memcpy(all.triangles, m->triangles, 3 * m->triangle_count * sizeof *all.triangles);
         if (added.n) /* added.t is NULL when nothing was added */
             memcpy(all.triangles + 3 * m->triangle_count, added.t,
                    3 * added.n * sizeof *all.triangles);
