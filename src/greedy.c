@@ -822,22 +822,19 @@ static tessel_status seed(gp *g, uint32_t R)
         return s;
     size_t done_near = 0;
     done_near = g->boxd_count;
-    if (covered(g, R)) {
-        settle_dead(g, R, &g->sum.left_closed_in);
-        return TESSEL_OK;
-    }
     /* Fewer than SEED_MIN neighbours make a splinter, not a surface. */
     if (g->cand_count < SEED_MIN || !pca_normal(g->cand, g->cand_count, f.n)) {
         settle_dead(g, R, done_near ? &g->sum.left_closed_in : &g->sum.left_untriangulated);
         return TESSEL_OK;
     }
-    /* A free point whose neighbours are mostly on the mesh already was left
-     * behind by the front (noise beside the surface, a spot it could not
-     * enter): a new front here would only make splinters. */
+    /* A free point whose neighbours are mostly on the mesh already, or that
+     * lies on a held triangle (covered), was left behind by the front (noise
+     * beside the surface, a spot it could not enter, a point passed over):
+     * a new front here would only make splinters or a second sheet. */
     size_t meshed = 0;
     for (size_t i = 0; i < g->cand_count; i++)
         meshed += g->head[g->cand[i].idx] != NONE;
-    if (2 * meshed > g->cand_count) {
+    if (2 * meshed > g->cand_count || covered(g, R)) {
         settle_dead(g, R, &g->sum.left_closed_in);
         return TESSEL_OK;
     }
