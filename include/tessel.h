@@ -660,7 +660,8 @@ typedef struct tessel_recon_summary {
     size_t seeds;                /* fronts started from a free point */
     size_t holes_closed;         /* boundary loops closed (see max_hole) */
     size_t rejected_intersecting;/* candidate triangles refused because they
-                                    would have intersected the mesh */
+                                    would have intersected the mesh or lain
+                                    on it as a second layer */
     size_t peak_held_triangles;  /* most triangles held in memory at once
                                     (all of them with orient_check or
                                     flip) */

@@ -20,9 +20,10 @@
  * used in opposite directions, so the mesh is manifold and consistently
  * oriented by construction; (2) geometry: a triangle is accepted only if it
  * is not degenerate and meets no held triangle except in a shared vertex or
- * edge (exact orient2d/orient3d). Triangles are held while a live point is
- * near enough for a later triangle to reach them and streamed out after.
- * See docs/greedy.md. */
+ * edge (exact orient2d/orient3d), nor lies on one as a second layer (the
+ * front's triangles). Triangles are held while a live point is near enough
+ * for a later triangle to reach them and streamed out after. See
+ * docs/greedy.md. */
 #include "greedy_internal.h"
 
 #include <float.h>
@@ -347,7 +348,7 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
         const gp_cand *a = &g->cand[g->seq[j + (size_t)i]];
         const gp_cand *b = &g->cand[g->seq[j + (size_t)i + 1]];
         double qa[2] = {a->x, a->y}, qb[2] = {b->x, b->y};
-        if (!tsl_gp_guard_ok(g, v, qa, qb)) {
+        if (!tsl_gp_guard_ok(g, v, qa, qb, 1)) {
             g->sum.rejected_intersecting++;
             return TESSEL_OK;
         }
@@ -964,7 +965,7 @@ static tessel_status try_ear(gp *g, uint32_t v, uint32_t u, uint32_t w, int *ok)
     if (s != TESSEL_OK)
         return s;
     uint32_t tv[3] = {v, u, w};
-    if (!tsl_gp_guard_ok(g, tv, NULL, NULL)) {
+    if (!tsl_gp_guard_ok(g, tv, NULL, NULL, 0)) {
         g->sum.rejected_intersecting++;
         return TESSEL_OK;
     }

@@ -5,7 +5,9 @@
  * test by the free-cone certificate: the projection on R's plane is linear,
  * so triangles whose images stay out of R's free sector cannot meet the new
  * triangles, which lie in it. The paper (Gopi & Krishnan 2002, section 4.1,
- * Theorem 4.1) relies on its sampling assumptions here instead. */
+ * Theorem 4.1) relies on its sampling assumptions here instead. The
+ * front's triangles must also not lie on a held triangle as a second layer
+ * (second_layer), which uniformly random samples otherwise make. */
 #include "greedy_internal.h"
 
 /* Exact: a, b, c collinear (a zero-area triangle). */
@@ -319,9 +321,79 @@ static inline int fan_separated(const uint32_t v[3], const double a[2], const do
     return left || right;
 }
 
+/* Whether held triangle (w, q) lies on the new triangle (v, p) as a second
+ * layer: facing the same way (normals within acos(LAYER_COS)), each vertex
+ * within LAYER_HEIGHT of v's longest edge off v's plane, and the two
+ * overlapping with positive area in that plane (no line through an edge of
+ * either has the other on its outer side). The two need not cross, so the
+ * exact test lets them pass; but the surface there would be covered twice,
+ * and the loop left between the layers winds the wrong way. */
+static int second_layer(const uint32_t v[3], const double p[3][3], const uint32_t w[3],
+                        const double q[3][3])
+{
+    double e1[3], e2[3], n[3], f1[3], f2[3], m[3];
+    tsl_sub(p[1], p[0], e1);
+    tsl_sub(p[2], p[0], e2);
+    tsl_cross(e1, e2, n);
+    tsl_sub(q[1], q[0], f1);
+    tsl_sub(q[2], q[0], f2);
+    tsl_cross(f1, f2, m);
+    double nn = tsl_dot(n, n), c = tsl_dot(m, n);
+    if (!(c > 0.0) || c * c < LAYER_COS * LAYER_COS * tsl_dot(m, m) * nn)
+        return 0;
+    double l2 = 0.0;
+    for (int k = 0; k < 3; k++) {
+        double d[3];
+        tsl_sub(p[(k + 1) % 3], p[k], d);
+        l2 = fmax(l2, tsl_dot(d, d));
+    }
+    for (int k = 0; k < 3; k++) {
+        if (w[k] == v[0] || w[k] == v[1] || w[k] == v[2])
+            continue;
+        double d[3];
+        tsl_sub(q[k], p[0], d);
+        double h = tsl_dot(d, n);
+        if (h * h > LAYER_HEIGHT * LAYER_HEIGHT * l2 * nn)
+            return 0;
+    }
+    /* Both in a frame of v's plane. */
+    double u[3], t[3], a[3][2], b[3][2];
+    memcpy(u, e1, sizeof u);
+    tsl_cross(n, u, t);
+    tsl_normalize(u);
+    tsl_normalize(t);
+    for (int k = 0; k < 3; k++) {
+        double d[3];
+        tsl_sub(p[k], p[0], d);
+        a[k][0] = tsl_dot(d, u);
+        a[k][1] = tsl_dot(d, t);
+        tsl_sub(q[k], p[0], d);
+        b[k][0] = tsl_dot(d, u);
+        b[k][1] = tsl_dot(d, t);
+    }
+    /* Both images are counter-clockwise (c > 0). A shared vertex projects
+     * to the same point in both, so touching images are separated. */
+    const double(*x)[2] = a, (*y)[2] = b;
+    for (int s = 0; s < 2; s++) {
+        for (int k = 0; k < 3; k++) {
+            const double *o = x[k], *e = x[(k + 1) % 3];
+            int outside = 1;
+            for (int j = 0; j < 3 && outside; j++)
+                outside = cross2(e[0] - o[0], e[1] - o[1], y[j][0] - o[0], y[j][1] - o[1]) <= 0.0;
+            if (outside)
+                return 0;
+        }
+        x = b;
+        y = a;
+    }
+    return 1;
+}
+
 /* The new triangle v meets no collected held triangle except in a shared
- * vertex or edge. */
-int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2])
+ * vertex or edge; with layers, it lies on none as a second layer either
+ * (see second_layer). */
+int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2],
+                    int layers)
 {
     float lo[3], hi[3];
     tsl_gp_tri_box(g, v, lo, hi);
@@ -345,7 +417,7 @@ int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double
         for (int k = 0; k < 3; k++)
             pos(g, T->v[k], q[k]);
         const double *pb[3] = {q[0], q[1], q[2]};
-        if (tsl_triangles_intersect(v, pa, T->v, pb))
+        if (tsl_triangles_intersect(v, pa, T->v, pb) || (layers && second_layer(v, p, T->v, q)))
             return 0;
     }
     return 1;

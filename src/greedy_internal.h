@@ -42,6 +42,15 @@ enum {
 /* A seed within this fraction of a held triangle's longest edge of its
  * plane, over the triangle, is taken as passed over (greedy.c, covered). */
 #define COVER_HEIGHT 0.25
+/* A front's triangle may not lie on a held one as a second layer: facing
+ * within acos(LAYER_COS) of the same way, within LAYER_HEIGHT of its
+ * longest edge off its plane, overlapping it (greedy_guard.c,
+ * second_layer). On uniformly random samples such layers lie within 0.025
+ * of the edge; the nearby triangles of scans (curved, slits) mostly
+ * farther: at 0.05 man.ply's boundary grew by a tenth, at 0.03 it does
+ * not (docs/greedy.md, "Second layers"). */
+#define LAYER_HEIGHT 0.03
+#define LAYER_COS 0.8
 /* Cell edge of the short-triangle grid (the guard's index), in mean
  * spacings. Measured on a 10^5 sphere, man.ply and bunny.pd.n05 against 2,
  * 2.5, 3.5, 4 and 6: 3 is the best or within 1% of it. */
@@ -461,6 +470,7 @@ tessel_status tsl_gp_guard_ready(gp *g);
 /* New triangle v meets no collected triangle beyond shared vertices/edges.
  * q1, q2: projections of v[1], v[2] on the plane of R = v[0] when v is one
  * of R's fan triangles (else NULL). */
-int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2]);
+int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2],
+                    int layers);
 
 #endif /* TESSEL_GREEDY_INTERNAL_H */
