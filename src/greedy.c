@@ -828,14 +828,18 @@ static tessel_status seed(gp *g, uint32_t R)
         settle_dead(g, R, done_near ? &g->sum.left_closed_in : &g->sum.left_untriangulated);
         return TESSEL_OK;
     }
-    /* A free point whose neighbours are mostly on the mesh already, or that
-     * lies on a held triangle (covered), was left behind by the front (noise
-     * beside the surface, a spot it could not enter, a point passed over):
-     * a new front here would only make splinters or a second sheet. */
+    /* A free point whose neighbours are mostly on the mesh already, whose
+     * box holds far more completed points than live ones, or that lies on
+     * a held triangle (covered), was left behind by the front (noise beside
+     * the surface, a spot it could not enter, a point passed over): a new
+     * front here would only make splinters or a second sheet. The count of
+     * completed points sees what covered cannot: triangles that have left
+     * memory. */
     size_t meshed = 0;
     for (size_t i = 0; i < g->cand_count; i++)
         meshed += g->head[g->cand[i].idx] != NONE;
-    if (2 * meshed > g->cand_count || covered(g, R)) {
+    if (2 * meshed > g->cand_count || g->boxd_count > SEED_DONE_RATIO * g->box_count ||
+        covered(g, R)) {
         settle_dead(g, R, &g->sum.left_closed_in);
         return TESSEL_OK;
     }
