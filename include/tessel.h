@@ -643,10 +643,11 @@ typedef struct tessel_recon_summary {
     size_t left_duplicate;       /* same coordinates as a kept point */
     size_t left_isolated;        /* no other point near enough (see
                                     max_spacing) */
-    size_t left_closed_in;       /* inside the surface already built: every
-                                    neighbour was completed before it was
-                                    reached (typically noise off the
-                                    surface), or the point lies on one of
+    size_t left_closed_in;       /* inside the surface already built: its
+                                    neighbours were all or mostly completed
+                                    before it was reached (typically noise
+                                    off the surface, or a point passed
+                                    over), or the point lies on one of
                                     its triangles (a point much closer to
                                     a neighbour than the spacing, passed
                                     over by the front) */
