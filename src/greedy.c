@@ -20,8 +20,8 @@
  * used in opposite directions, so the mesh is manifold and consistently
  * oriented by construction; (2) geometry: a triangle is accepted only if it
  * is not degenerate and meets no held triangle except in a shared vertex or
- * edge (exact orient2d/orient3d), nor lies on one as a second layer (the
- * front's triangles). Triangles are held while a live point is near enough
+ * edge (exact orient2d/orient3d), nor, if the front made it, lies on one
+ * as a second layer. Triangles are held while a live point is near enough
  * for a later triangle to reach them and streamed out after. See
  * docs/greedy.md. */
 #include "greedy_internal.h"

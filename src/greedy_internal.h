@@ -474,7 +474,8 @@ tessel_status tsl_gp_guard_collect(gp *g, uint32_t R, const gp_frame *f, int use
  * (f must stay valid until then; no triangle may be added in between). */
 void tsl_gp_guard_defer(gp *g, uint32_t R, const gp_frame *f, int use_cone);
 tessel_status tsl_gp_guard_ready(gp *g);
-/* New triangle v meets no collected triangle beyond shared vertices/edges.
+/* New triangle v meets no collected triangle beyond shared vertices/edges
+ * and, with layers, lies on none as a second layer (see LAYER_HEIGHT).
  * q1, q2: projections of v[1], v[2] on the plane of R = v[0] when v is one
  * of R's fan triangles (else NULL). */
 int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2],
