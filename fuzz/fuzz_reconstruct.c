@@ -125,11 +125,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             p.use_viewpoint = 1;
             p.viewpoint[0] = p.viewpoint[1] = p.viewpoint[2] = coordinate(128, scale);
         }
-        if ((opt & 0x18) == 0x18 && !organize(&c, 4 + 4 * ((opt >> 5) & 3))) {
-            tessel_cloud_free(&c);
-            return 0;
-        }
         if ((opt & 0x18) == 0x18) {
+            if (!organize(&c, 4 + 4 * ((opt >> 5) & 3))) {
+                tessel_cloud_free(&c);
+                return 0;
+            }
             p.mode = TESSEL_FIXED_PLANE_GRID;
             grid = 1;
         }

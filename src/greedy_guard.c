@@ -321,59 +321,78 @@ static inline int fan_separated(const uint32_t v[3], const double a[2], const do
     return left || right;
 }
 
-/* Whether held triangle (w, q) lies on the new triangle (v, p) as a second
+/* The new triangle (v, p) as second_layer needs it: its normal n (e1 x e2),
+ * its longest edge squared, a frame (u, t) of its plane and its image in
+ * that frame, counter-clockwise. Made once per new triangle. */
+typedef struct layer_ref {
+    const uint32_t *v;
+    const double (*p)[3];
+    double n[3], nn, l2, u[3], t[3], a[3][2];
+} layer_ref;
+
+static void layer_ref_make(layer_ref *L, const uint32_t v[3], const double p[3][3])
+{
+    double e1[3], e2[3];
+    L->v = v;
+    L->p = p;
+    tsl_sub(p[1], p[0], e1);
+    tsl_sub(p[2], p[0], e2);
+    tsl_cross(e1, e2, L->n);
+    L->nn = tsl_dot(L->n, L->n);
+    L->l2 = 0.0;
+    for (int k = 0; k < 3; k++) {
+        double d[3];
+        tsl_sub(p[(k + 1) % 3], p[k], d);
+        L->l2 = fmax(L->l2, tsl_dot(d, d));
+    }
+    memcpy(L->u, e1, sizeof L->u);
+    tsl_cross(L->n, L->u, L->t);
+    tsl_normalize(L->u);
+    tsl_normalize(L->t);
+    for (int k = 0; k < 3; k++) {
+        double d[3];
+        tsl_sub(p[k], p[0], d);
+        L->a[k][0] = tsl_dot(d, L->u);
+        L->a[k][1] = tsl_dot(d, L->t);
+    }
+}
+
+/* Whether held triangle (w, q) lies on the new triangle L as a second
  * layer: facing the same way (normals within acos(LAYER_COS)), each vertex
- * within LAYER_HEIGHT of v's longest edge off v's plane, and the two
+ * within LAYER_HEIGHT of L's longest edge off L's plane, and the two
  * overlapping with positive area in that plane (no line through an edge of
  * either has the other on its outer side). The two need not cross, so the
  * exact test lets them pass; but the surface there would be covered twice,
  * and the loop left between the layers winds the wrong way. */
-static int second_layer(const uint32_t v[3], const double p[3][3], const uint32_t w[3],
-                        const double q[3][3])
+static int second_layer(const layer_ref *L, const uint32_t w[3], const double q[3][3])
 {
-    double e1[3], e2[3], n[3], f1[3], f2[3], m[3];
-    tsl_sub(p[1], p[0], e1);
-    tsl_sub(p[2], p[0], e2);
-    tsl_cross(e1, e2, n);
+    const double *p0 = L->p[0];
+    double f1[3], f2[3], m[3];
     tsl_sub(q[1], q[0], f1);
     tsl_sub(q[2], q[0], f2);
     tsl_cross(f1, f2, m);
-    double nn = tsl_dot(n, n), c = tsl_dot(m, n);
-    if (!(c > 0.0) || c * c < LAYER_COS * LAYER_COS * tsl_dot(m, m) * nn)
+    double c = tsl_dot(m, L->n);
+    if (!(c > 0.0) || c * c < LAYER_COS * LAYER_COS * tsl_dot(m, m) * L->nn)
         return 0;
-    double l2 = 0.0;
     for (int k = 0; k < 3; k++) {
-        double d[3];
-        tsl_sub(p[(k + 1) % 3], p[k], d);
-        l2 = fmax(l2, tsl_dot(d, d));
-    }
-    for (int k = 0; k < 3; k++) {
-        if (w[k] == v[0] || w[k] == v[1] || w[k] == v[2])
+        if (w[k] == L->v[0] || w[k] == L->v[1] || w[k] == L->v[2])
             continue;
         double d[3];
-        tsl_sub(q[k], p[0], d);
-        double h = tsl_dot(d, n);
-        if (h * h > LAYER_HEIGHT * LAYER_HEIGHT * l2 * nn)
+        tsl_sub(q[k], p0, d);
+        double h = tsl_dot(d, L->n);
+        if (h * h > LAYER_HEIGHT * LAYER_HEIGHT * L->l2 * L->nn)
             return 0;
     }
-    /* Both in a frame of v's plane. */
-    double u[3], t[3], a[3][2], b[3][2];
-    memcpy(u, e1, sizeof u);
-    tsl_cross(n, u, t);
-    tsl_normalize(u);
-    tsl_normalize(t);
+    double b[3][2];
     for (int k = 0; k < 3; k++) {
         double d[3];
-        tsl_sub(p[k], p[0], d);
-        a[k][0] = tsl_dot(d, u);
-        a[k][1] = tsl_dot(d, t);
-        tsl_sub(q[k], p[0], d);
-        b[k][0] = tsl_dot(d, u);
-        b[k][1] = tsl_dot(d, t);
+        tsl_sub(q[k], p0, d);
+        b[k][0] = tsl_dot(d, L->u);
+        b[k][1] = tsl_dot(d, L->t);
     }
     /* Both images are counter-clockwise (c > 0). A shared vertex projects
      * to the same point in both, so touching images are separated. */
-    const double(*x)[2] = a, (*y)[2] = b;
+    const double(*x)[2] = L->a, (*y)[2] = b;
     for (int s = 0; s < 2; s++) {
         for (int k = 0; k < 3; k++) {
             const double *o = x[k], *e = x[(k + 1) % 3];
@@ -384,7 +403,7 @@ static int second_layer(const uint32_t v[3], const double p[3][3], const uint32_
                 return 0;
         }
         x = b;
-        y = a;
+        y = L->a;
     }
     return 1;
 }
@@ -399,6 +418,7 @@ int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double
     tsl_gp_tri_box(g, v, lo, hi);
     double p[3][3];
     const double *pa[3] = {p[0], p[1], p[2]};
+    layer_ref ref;
     int have_p = 0;
     for (size_t i = 0; i < g->gt_count; i++) {
         const gp_gtri *e = &g->gt[i];
@@ -411,13 +431,16 @@ int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double
         if (!have_p) {
             for (int k = 0; k < 3; k++)
                 pos(g, v[k], p[k]);
+            if (layers)
+                layer_ref_make(&ref, v, (const double(*)[3])p);
             have_p = 1;
         }
         double q[3][3];
         for (int k = 0; k < 3; k++)
             pos(g, T->v[k], q[k]);
         const double *pb[3] = {q[0], q[1], q[2]};
-        if (tsl_triangles_intersect(v, pa, T->v, pb) || (layers && second_layer(v, p, T->v, q)))
+        if (tsl_triangles_intersect(v, pa, T->v, pb) ||
+            (layers && second_layer(&ref, T->v, (const double(*)[3])q)))
             return 0;
     }
     return 1;
