@@ -89,13 +89,19 @@ static tessel_status grid_build(ray_grid *g, const float *xyz, const uint32_t *t
         tsl_sub(p[1], p[0], d);
         len += tsl_norm(d);
     }
-    /* Two mean edges a cell: few triangles per cell, few cells per ray. */
+    /* One mean edge a cell. A ray's cost is its triangle tests, and most of
+     * them are in the first cells, among the triangles around its origin;
+     * smaller cells hold fewer of them, for more (cheap) empty cells on
+     * the way out. Against two mean edges, the check took 0.12 s instead
+     * of 0.18 s on man.ply and 0.31 s instead of 0.51 s on
+     * elephant.pd.n05.ply (one core); below one edge it gained nothing. The
+     * cell changes no count: a crossing counts in the cell where it lies. */
     double ext[3], top = 0.0;
     for (int k = 0; k < 3; k++) {
         ext[k] = hi[k] - g->lo[k];
         top = fmax(top, ext[k]);
     }
-    g->cell = 2.0 * len / (double)nt;
+    g->cell = len / (double)nt;
     if (!(g->cell > 0.0))
         g->cell = top > 0.0 ? top : 1.0;
     for (;;) {
