@@ -1119,7 +1119,9 @@ typedef struct tessel_front_params {
                                 twice that when points the front passed by
                                 lie in it): holes the front left, not holes
                                 of the sampled surface, which enclose empty
-                                space. Closing
+                                space, nor loops round a tube (a limb the
+                                front did not cross), whose triangles stand
+                                across them. Closing
                                 tries the least-area and the least-bending
                                 triangulations of the loop, then, if the
                                 borders cross, the same after removing the

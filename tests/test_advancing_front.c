@@ -2,7 +2,8 @@
  * samples: a sphere and a torus must come out closed, manifold, outward and
  * with the right Euler characteristic; a disc with exactly one border loop;
  * two close parallel sheets as two components; a sphere with noise of a
- * fifth and of a third of the spacing, shuffled, still closed; every result
+ * fifth and of a third of the spacing, shuffled, still closed; an open
+ * tube keeps its two end loops; every result
  * free of self-intersections (exact check); second normal lines whose sign
  * does not matter. Also duplicates, bad input and the exact triangle test
  * on hand-made cases. */
@@ -254,6 +255,41 @@ static void test_disc(void)
               "disc border %zu edges", tp.boundary_edges);
     printf("disc: %zu points, %zu triangles, %zu border edges\n", c.count, m.triangle_count,
            tp.boundary_edges);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+/* An open tube of radius 2 h (13 points a ring, rings h apart, every
+ * other one turned by half a step): its two end loops are borders of the
+ * surface, two spacings in radius, which the hole closing used to take for
+ * holes the front left and cap. A loop whose triangles stand across it is
+ * not closed. */
+static void test_open_tube(void)
+{
+    const size_t ring = 13, rings = 21;
+    const double h = 1.0, r = 2.0 * h;
+    tessel_cloud c = make_cloud(ring * rings);
+    for (size_t j = 0; j < rings; j++)
+        for (size_t i = 0; i < ring; i++) {
+            double a = 2.0 * PI * ((double)i + 0.5 * (double)(j % 2)) / (double)ring;
+            float *p = c.xyz + 3 * (j * ring + i);
+            p[0] = (float)(r * cos(a));
+            p[1] = (float)(r * sin(a));
+            p[2] = (float)((double)j * h);
+        }
+    tessel_mesh m;
+    tessel_front_stats st;
+    CHECK(tessel_advancing_front(&c, NULL, NULL, &m, &st) == TESSEL_OK);
+    topo tp = count_topology(&m);
+    tessel_mesh_report rep = check_mesh(&m, &c);
+    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+    CHECK(tp.used_vertices == c.count && rep.components == 1);
+    /* An annulus: Euler characteristic 0, the two rings as its borders. */
+    CHECK_MSG(tp.euler == 0 && rep.boundary_loops == 2 && tp.boundary_edges == 2 * ring,
+              "open tube: euler %ld, %zu border loops, %zu border edges, %zu hole triangles",
+              tp.euler, rep.boundary_loops, tp.boundary_edges, st.hole_triangles);
+    printf("open tube: %zu triangles, %zu border edges\n", m.triangle_count, tp.boundary_edges);
     tessel_mesh_free(&m);
     tessel_cloud_free(&c);
 }
@@ -644,6 +680,7 @@ int main(void)
     test_sphere();
     test_torus();
     test_disc();
+    test_open_tube();
     test_two_sheets();
     test_noisy_sphere();
     test_noisy_holes();
