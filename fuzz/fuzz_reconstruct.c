@@ -13,7 +13,8 @@
  * triangles, all facing the viewpoint, can still cross. With the option
  * byte's top bit,
  * the methods that take a thread count run again on two threads and must
- * give the same mesh, bit for bit.
+ * give the same mesh, bit for bit, and greedy (one thread) gets a
+ * viewpoint at the lattice's centre, by which its orientation check votes.
  *
  * Input: byte 0 picks the method and options, byte 1 the scale, then three
  * bytes per point (at most MAX_POINTS): each coordinate is its byte's high
@@ -106,6 +107,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         p.min_angle = (opt & 0x40) ? 10.0 : 0.0;
         if (opt % 5 == 1)
             p.flip = 0, p.orient_check = 0, p.max_hole = 0;
+        if (opt & 0x80) { /* a scan: the check votes by the viewpoint */
+            c.has_viewpoint = 1;
+            c.viewpoint[0] = c.viewpoint[1] = c.viewpoint[2] = coordinate(128, scale);
+        }
         st = tessel_reconstruct_greedy_mesh(&c, &p, NULL, &m, NULL);
         break;
     }

@@ -605,18 +605,21 @@ typedef struct tessel_greedy_params {
                               their boundary and they are not sent to the
                               sink again. Default NULL */
     size_t existing_count;
-    int orient_check;      /* 1: hold every triangle until the end, cast
-                              rays to find regions meshed inside out (the
+    int orient_check;      /* 1: hold every triangle until the end, find
+                              regions meshed the wrong way round (the
                               front can step across a place where two
                               sheets touch, a hand on a thigh, and carry
-                              the wrong side onto a whole limb), rebuild
-                              them the right way round, then send all to
-                              the sink. Memory then holds the mesh, about
-                              24 bytes per point more. Only for clouds
-                              with neither normals nor a viewpoint, and
-                              without existing triangles. 0: stream
-                              triangles as they are final. Not in the
-                              paper; docs/greedy.md. Default 1 */
+                              the wrong side onto a whole limb; on a noisy
+                              scan it folds over itself), rebuild them
+                              the right way round, then send all to the
+                              sink. The side comes from the input
+                              normals or viewpoint when the cloud has
+                              them, else from rays (closed surfaces).
+                              Memory then holds the mesh, about 24 bytes
+                              per point more. Not with existing
+                              triangles. 0: stream triangles as they are
+                              final. Not in the paper; docs/greedy.md.
+                              Default 1 */
     int flip;              /* 1: hold every triangle until the end, then flip
                               the diagonal of two triangles wherever the
                               two angles facing it add up to more than 180
@@ -666,8 +669,9 @@ typedef struct tessel_recon_summary {
     size_t peak_held_triangles;  /* most triangles held in memory at once
                                     (all of them with orient_check or
                                     flip) */
-    size_t reoriented;           /* triangles of regions found inside out
-                                    and rebuilt (see orient_check) */
+    size_t reoriented;           /* triangles of regions found the wrong
+                                    way round and rebuilt (see
+                                    orient_check) */
     size_t flips;                /* diagonals flipped (see flip) */
     double spacing;              /* mean spacing used, world units */
     double seconds;              /* wall-clock time of the call */

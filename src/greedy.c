@@ -1238,10 +1238,9 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
         return TESSEL_ERR_TOO_FEW_POINTS;
     tessel_recon_summary sum;
     memset(&sum, 0, sizeof sum);
-    /* Input normals or a viewpoint decide the side already; with existing
-     * triangles the caller holds the mesh, and checks it whole (and their
-     * edges are not ours to flip). */
-    bool check = p.orient_check && !cloud->normals && !cloud->has_viewpoint && !p.existing_count;
+    /* With existing triangles the caller holds the mesh, and checks it
+     * whole (and their edges are not ours to flip). */
+    bool check = p.orient_check && !p.existing_count;
     p.flip = p.flip && !p.existing_count;
     tessel_status s;
     if (check || p.flip)

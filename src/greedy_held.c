@@ -7,8 +7,10 @@
  *    it closer than the sampling can separate (a hand on a thigh), it
  *    carries the wrong side across, and the region behind the step comes
  *    out inside out although every edge agrees with its neighbours. Only a
- *    global test sees it: the ray-parity check of src/orient.c. The regions
- *    the rays find facing inward are flipped, their rims and the triangles
+ *    global test sees it: the ray-parity check of src/orient.c, or, when
+ *    the points have normals or a viewpoint, their verdict (a noisy scan
+ *    folds the front over itself the same way). The regions found facing
+ *    the wrong way are flipped, their rims and the triangles
  *    at points left with two fans (tsl_single_fans) dropped, and the front
  *    runs again from what is left (params.existing) to mesh the seams.
  * 2. diagonals are flipped where the two angles facing them add up to
@@ -44,8 +46,9 @@ static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary 
     out->rejected_intersecting += first->rejected_intersecting;
 }
 
-/* Step 1: the ray-parity check, and the repair when a region is found
- * inside out; all holds the mesh before and after. */
+/* Step 1: the orientation check (by ray parity, or by the points' normals
+ * or viewpoint when the cloud has them), and the repair when a region is
+ * found inside out; all holds the mesh before and after. */
 static tessel_status check_and_repair(const tessel_cloud *cloud,
                                       const tessel_greedy_params *params,
                                       const tessel_callbacks *callbacks, gp_collect *all,
@@ -56,8 +59,16 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
     size_t flipped = 0;
     tessel_status s = mark ? tsl_progress(callbacks, "orientation check", 0.0)
                            : TESSEL_ERR_NOMEM;
-    if (s == TESSEL_OK)
+    if (s == TESSEL_OK && (cloud->normals || cloud->has_viewpoint)) {
+        /* The scanner's side, in the points' frame. */
+        double vp[3];
+        for (int k = 0; k < 3; k++)
+            vp[k] = cloud->viewpoint[k] - cloud->offset[k];
+        s = tsl_orient_check_toward(cloud->xyz, cloud->count, all->tris, all->count,
+                                    cloud->normals, vp, 0, mark, &flipped);
+    } else if (s == TESSEL_OK) {
         s = tsl_orient_check(cloud->xyz, cloud->count, all->tris, all->count, 0, mark, &flipped);
+    }
     if (s == TESSEL_OK)
         s = tsl_progress(callbacks, "orientation check", 1.0);
     if (s == TESSEL_OK && flipped) {

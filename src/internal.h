@@ -208,6 +208,14 @@ tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *
  * are the same for any thread count. */
 tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri, size_t nt,
                                int threads, uint8_t *mark, size_t *flipped);
+/* The same where the points' side is known: each triangle votes out when
+ * it agrees with the sum of its vertices' normals (normals, one per point)
+ * or, normals NULL, faces viewpoint (in xyz's frame), and a region voting
+ * in is flipped however much of its component it holds. */
+tessel_status tsl_orient_check_toward(const float *xyz, size_t nv, const uint32_t *tri,
+                                      size_t nt, const float *normals,
+                                      const double *viewpoint, int threads, uint8_t *mark,
+                                      size_t *flipped);
 /* The check's verdict applied: the triangles marked 1 turned, those
  * marked 2 left out, the rest copied; out may be tri. Returns how many
  * triangles out holds. */

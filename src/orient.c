@@ -16,7 +16,15 @@
  * orientation being the front's business (orient_components). The
  * triangles along the region's edge are marked for removal: once the region
  * is flipped they would meet their neighbours with clashing orientations,
- * and the front fills the seam again from the mesh around it. */
+ * and the front fills the seam again from the mesh around it.
+ *
+ * When the points come with normals or a viewpoint (a scan), the side of
+ * every triangle is known without rays, open surfaces included: it votes
+ * by agreeing with its vertices' normals or facing the viewpoint, and any
+ * region voting away is flipped, a whole component too
+ * (tsl_orient_check_toward). The greedy front on a noisy range scan folds
+ * over itself and carries the wrong side across the folds: on
+ * room_small.grid.ply half the area faced away from the scanner. */
 #include "internal.h"
 
 #include <math.h>
@@ -298,39 +306,29 @@ static uint32_t label_sets(const uint32_t *nb, size_t nt, const uint8_t *in, uin
     return sets;
 }
 
-tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri, size_t nt,
-                               int threads, uint8_t *mark, size_t *flipped)
+/* From the raw votes (+1 out, -1 in, 0 none): the votes averaged over
+ * SMOOTH_ROUNDS rings of edge neighbours, the connected regions voting in
+ * marked for flipping when they hold at least MIN_REGION triangles, more
+ * inward raw votes than outward and (unless whole) less than half of
+ * their component, and their rims marked for dropping (see the header). */
+static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, const float *raw,
+                                  bool whole, int threads, uint8_t *mark, size_t *flipped)
 {
-    *flipped = 0;
-    memset(mark, 0, nt);
-    if (nt < 2 * MIN_REGION)
-        return TESSEL_OK;
-    if (nt > UINT32_MAX)
-        return TESSEL_ERR_LIMIT;
-    ray_grid g = {0};
     uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb);
     uint32_t *label = tsl_alloc_array(nt, sizeof *label);
     uint32_t *comp = tsl_alloc_array(nt, sizeof *comp);
     uint32_t *queue = tsl_alloc_array(nt, sizeof *queue);
-    float *raw = tsl_alloc_array(nt, sizeof *raw); /* the rays' votes */
     float *vote = tsl_alloc_array(nt, sizeof *vote);
     float *next = tsl_alloc_array(nt, sizeof *next);
     uint8_t *in = tsl_alloc_array(nt, sizeof *in);
     size_t *size = NULL, *csize = NULL;
     double *sum = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!nb || !label || !comp || !queue || !raw || !vote || !next || !in)
+    if (!nb || !label || !comp || !queue || !vote || !next || !in)
         goto done;
-    if ((st = neighbours(tri, nt, nv, nb)) || (st = grid_build(&g, xyz, tri, nt)))
+    if ((st = neighbours(tri, nt, nv, nb)))
         goto done;
-
     ptrdiff_t n = (ptrdiff_t)nt;
-    uint32_t stride = (uint32_t)((nt + RAY_BUDGET - 1) / RAY_BUDGET);
-#pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
-    for (ptrdiff_t t = 0; t < n; t++) {
-        int c = mix((uint32_t)t) % stride ? -1 : crossings(&g, xyz, tri, (uint32_t)t);
-        raw[t] = c < 0 ? 0.0f : c % 2 ? -1.0f : 1.0f;
-    }
     memcpy(vote, raw, nt * sizeof *vote);
     for (int r = 0; r < SMOOTH_ROUNDS; r++) {
 #pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
@@ -373,7 +371,8 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
     }
     for (size_t t = 0; t < nt; t++) {
         uint32_t l = label[t];
-        if (l != NONE && size[l] >= MIN_REGION && sum[l] < 0.0 && 2 * size[l] < csize[comp[t]])
+        if (l != NONE && size[l] >= MIN_REGION && sum[l] < 0.0 &&
+            (whole || 2 * size[l] < csize[comp[t]]))
             mark[t] = 1;
     }
     /* The region's rim: triangles with a neighbour that stays as it is. */
@@ -389,19 +388,80 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
     }
     st = TESSEL_OK;
 done:
-    free(g.start);
-    free(g.items);
     free(nb);
     free(label);
     free(comp);
     free(queue);
-    free(raw);
     free(vote);
     free(next);
     free(in);
     free(size);
     free(csize);
     free(sum);
+    return st;
+}
+
+tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri, size_t nt,
+                               int threads, uint8_t *mark, size_t *flipped)
+{
+    *flipped = 0;
+    memset(mark, 0, nt);
+    if (nt < 2 * MIN_REGION)
+        return TESSEL_OK;
+    if (nt > UINT32_MAX)
+        return TESSEL_ERR_LIMIT;
+    ray_grid g = {0};
+    float *raw = tsl_alloc_array(nt, sizeof *raw);
+    tessel_status st = raw ? grid_build(&g, xyz, tri, nt) : TESSEL_ERR_NOMEM;
+    if (st == TESSEL_OK) {
+        ptrdiff_t n = (ptrdiff_t)nt;
+        uint32_t stride = (uint32_t)((nt + RAY_BUDGET - 1) / RAY_BUDGET);
+#pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
+        for (ptrdiff_t t = 0; t < n; t++) {
+            int c = mix((uint32_t)t) % stride ? -1 : crossings(&g, xyz, tri, (uint32_t)t);
+            raw[t] = c < 0 ? 0.0f : c % 2 ? -1.0f : 1.0f;
+        }
+    }
+    free(g.start);
+    free(g.items);
+    if (st == TESSEL_OK)
+        st = mark_regions(tri, nt, nv, raw, false, threads, mark, flipped);
+    free(raw);
+    return st;
+}
+
+tessel_status tsl_orient_check_toward(const float *xyz, size_t nv, const uint32_t *tri,
+                                      size_t nt, const float *normals,
+                                      const double *viewpoint, int threads, uint8_t *mark,
+                                      size_t *flipped)
+{
+    *flipped = 0;
+    memset(mark, 0, nt);
+    if (nt < 2 * MIN_REGION)
+        return TESSEL_OK;
+    if (nt > UINT32_MAX)
+        return TESSEL_ERR_LIMIT;
+    float *raw = tsl_alloc_array(nt, sizeof *raw);
+    if (!raw)
+        return TESSEL_ERR_NOMEM;
+    ptrdiff_t n = (ptrdiff_t)nt;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+    for (ptrdiff_t t = 0; t < n; t++) {
+        const uint32_t *v = tri + 3 * (size_t)t;
+        double p[3][3], u[3], w[3], nn[3], ref[3] = {0.0, 0.0, 0.0};
+        tri_points(xyz, v, p);
+        tsl_sub(p[1], p[0], u);
+        tsl_sub(p[2], p[0], w);
+        tsl_cross(u, w, nn);
+        for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++)
+                ref[k] += normals ? (double)normals[3 * (size_t)v[i] + (size_t)k]
+                                  : viewpoint[k] - p[i][k];
+        double d = tsl_dot(nn, ref);
+        raw[t] = d > 0.0 ? 1.0f : d < 0.0 ? -1.0f : 0.0f;
+    }
+    tessel_status st = mark_regions(tri, nt, nv, raw, true, threads, mark, flipped);
+    free(raw);
     return st;
 }
 

@@ -22,11 +22,12 @@ static const char greedy_help[] =
     "ordered by angle on its tangent plane, skipping those hidden by the mesh\n"
     "boundary. Every triangle is checked exactly: the output is manifold,\n"
     "consistently oriented (counter-clockwise seen from outside on closed\n"
-    "surfaces) and free of self-intersections. Without input normals or a\n"
-    "viewpoint, rays then find regions meshed inside out (where two sheets\n"
-    "touch, a hand on a thigh) and those are rebuilt. Last, diagonals are\n"
-    "flipped where the two angles facing them add up to more than 180\n"
-    "degrees (the Delaunay rule), which removes most slivers.\n"
+    "surfaces) and free of self-intersections. Regions meshed the wrong way\n"
+    "round (where two sheets touch, a hand on a thigh; folds of a noisy scan)\n"
+    "are then found, by the input normals or viewpoint when the cloud has\n"
+    "them, else by rays, and rebuilt. Last, diagonals are flipped where the\n"
+    "two angles facing them add up to more than 180 degrees (the Delaunay\n"
+    "rule), which removes most slivers.\n"
     "Best on clean, evenly sampled clouds; for noisy ones use --method\n"
     "smooth.\n\n"
     "Other methods:\n"
@@ -197,7 +198,8 @@ static int greedy(int argc, char **argv)
                     sum.left_untriangulated);
         if (sum.reoriented)
             fprintf(stderr,
-                    "tessel: %zu triangles of regions meshed inside out were turned and "
+                    "tessel: %zu triangles of regions meshed the wrong way round were "
+                    "turned and "
                     "their seams meshed again\n",
                     sum.reoriented);
         /* Each edge has two triangle sides, a boundary edge one. */
