@@ -612,9 +612,11 @@ typedef struct tessel_greedy_params {
                               the wrong side onto a whole limb; on a noisy
                               scan it folds over itself), rebuild them
                               the right way round, then send all to the
-                              sink. The side comes from the input
-                              normals or viewpoint when the cloud has
-                              them, else from rays (closed surfaces).
+                              sink. The side comes from the viewpoint or
+                              the input normals when the cloud has them
+                              (normals only when oriented: their signs
+                              agree across most edges), else from rays
+                              (closed surfaces).
                               Memory then holds the mesh, about 24 bytes
                               per point more. Not with existing
                               triangles. 0: stream triangles as they are

@@ -59,13 +59,16 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
     size_t flipped = 0;
     tessel_status s = mark ? tsl_progress(callbacks, "orientation check", 0.0)
                            : TESSEL_ERR_NOMEM;
-    if (s == TESSEL_OK && (cloud->normals || cloud->has_viewpoint)) {
+    bool signed_normals =
+        cloud->normals && tsl_normals_signed(cloud->normals, all->tris, all->count);
+    if (s == TESSEL_OK && (cloud->has_viewpoint || signed_normals)) {
         /* The scanner's side, in the points' frame. */
         double vp[3];
         for (int k = 0; k < 3; k++)
             vp[k] = cloud->viewpoint[k] - cloud->offset[k];
         s = tsl_orient_check_toward(cloud->xyz, cloud->count, all->tris, all->count,
-                                    cloud->normals, vp, 0, mark, &flipped);
+                                    cloud->has_viewpoint ? NULL : cloud->normals, vp, 0, mark,
+                                    &flipped);
     } else if (s == TESSEL_OK) {
         s = tsl_orient_check(cloud->xyz, cloud->count, all->tris, all->count, 0, mark, &flipped);
     }

@@ -216,6 +216,10 @@ tessel_status tsl_orient_check_toward(const float *xyz, size_t nv, const uint32_
                                       size_t nt, const float *normals,
                                       const double *viewpoint, int threads, uint8_t *mark,
                                       size_t *flipped);
+/* Whether the points' normals (one per point) are oriented: their signs
+ * agree across most of the mesh's edges. Unoriented normals decide no
+ * side, and the ray check applies. */
+bool tsl_normals_signed(const float *normals, const uint32_t *tri, size_t nt);
 /* The check's verdict applied: the triangles marked 1 turned, those
  * marked 2 left out, the rest copied; out may be tri. Returns how many
  * triangles out holds. */
