@@ -184,6 +184,20 @@ static double signed_volume(const tessel_mesh *m)
     return v;
 }
 
+/* Triangulates c into m and checks it: manifold, consistently oriented,
+ * borders through single vertices, valid and free of self-intersections
+ * (exact); its topology and report for the caller's own checks. */
+static void front_checked(const tessel_cloud *c, tessel_mesh *m, tessel_front_stats *st,
+                          topo *tp, tessel_mesh_report *rep)
+{
+    CHECK(tessel_advancing_front(c, NULL, NULL, m, st) == TESSEL_OK);
+    *tp = count_topology(m);
+    *rep = check_mesh(m, c);
+    CHECK(tp->nonmanifold_edges == 0 && tp->misoriented_edges == 0 &&
+          tp->bad_border_vertices == 0);
+    CHECK(tessel_mesh_report_valid(rep) && rep->self_intersections == 0);
+}
+
 static void test_sphere(void)
 {
     tessel_cloud c = sphere(4000);
@@ -239,15 +253,11 @@ static void test_disc(void)
     seed = 3;
     sheet(c.xyz, n, 0.05, 0.0, 1, &seed);
     tessel_mesh m;
-    tessel_front_stats st;
-    CHECK(tessel_advancing_front(&c, NULL, NULL, &m, &st) == TESSEL_OK);
-    topo tp = count_topology(&m);
-    tessel_mesh_report rep = check_mesh(&m, &c);
-    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
+    topo tp;
+    tessel_mesh_report rep;
+    front_checked(&c, &m, NULL, &tp, &rep);
     CHECK_MSG(tp.euler == 1, "disc: euler %ld", tp.euler);
     CHECK(rep.boundary_loops == 1 && rep.components == 1);
-    CHECK(tessel_mesh_report_valid(&rep));
-    CHECK(rep.self_intersections == 0);
     CHECK(tp.used_vertices == c.count);
     /* The border follows the circle: about 2 pi / h edges. */
     double expect = 2.0 * PI / 0.05;
@@ -279,11 +289,9 @@ static void test_open_tube(void)
         }
     tessel_mesh m;
     tessel_front_stats st;
-    CHECK(tessel_advancing_front(&c, NULL, NULL, &m, &st) == TESSEL_OK);
-    topo tp = count_topology(&m);
-    tessel_mesh_report rep = check_mesh(&m, &c);
-    CHECK(tp.nonmanifold_edges == 0 && tp.misoriented_edges == 0 && tp.bad_border_vertices == 0);
-    CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+    topo tp;
+    tessel_mesh_report rep;
+    front_checked(&c, &m, &st, &tp, &rep);
     CHECK(tp.used_vertices == c.count && rep.components == 1);
     /* An annulus: Euler characteristic 0, the two rings as its borders. */
     CHECK_MSG(tp.euler == 0 && rep.boundary_loops == 2 && tp.boundary_edges == 2 * ring,
