@@ -59,9 +59,9 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
     size_t flipped = 0;
     tessel_status s = mark ? tsl_progress(callbacks, "orientation check", 0.0)
                            : TESSEL_ERR_NOMEM;
-    bool signed_normals =
-        cloud->normals && tsl_normals_signed(cloud->normals, all->tris, all->count);
-    if (s == TESSEL_OK && (cloud->has_viewpoint || signed_normals)) {
+    bool known_side = cloud->has_viewpoint ||
+                      (cloud->normals && tsl_normals_signed(cloud->normals, all->tris, all->count));
+    if (s == TESSEL_OK && known_side) {
         /* The scanner's side, in the points' frame. */
         double vp[3];
         for (int k = 0; k < 3; k++)
