@@ -173,21 +173,28 @@ static void test_open_and_hard(void)
 
 
 /* Triangles of a mesh over the unit sphere that face its centre. */
+/* Triangle t's corners p and normal n (twice its area, right-handed). */
+static void triangle_of(const tessel_mesh *m, size_t t, double p[3][3], double n[3])
+{
+    double u[3], v[3];
+    for (int k = 0; k < 3; k++)
+        for (int a = 0; a < 3; a++)
+            p[k][a] = m->xyz[3 * (size_t)m->triangles[3 * t + k] + a];
+    for (int a = 0; a < 3; a++) {
+        u[a] = p[1][a] - p[0][a];
+        v[a] = p[2][a] - p[0][a];
+    }
+    n[0] = u[1] * v[2] - u[2] * v[1];
+    n[1] = u[2] * v[0] - u[0] * v[2];
+    n[2] = u[0] * v[1] - u[1] * v[0];
+}
+
 static size_t facing_in(const tessel_mesh *m)
 {
     size_t in = 0;
     for (size_t t = 0; t < m->triangle_count; t++) {
-        double p[3][3], u[3], v[3], n[3];
-        for (int k = 0; k < 3; k++)
-            for (int a = 0; a < 3; a++)
-                p[k][a] = m->xyz[3 * (size_t)m->triangles[3 * t + k] + a];
-        for (int a = 0; a < 3; a++) {
-            u[a] = p[1][a] - p[0][a];
-            v[a] = p[2][a] - p[0][a];
-        }
-        n[0] = u[1] * v[2] - u[2] * v[1];
-        n[1] = u[2] * v[0] - u[0] * v[2];
-        n[2] = u[0] * v[1] - u[1] * v[0];
+        double p[3][3], n[3];
+        triangle_of(m, t, p, n);
         in += n[0] * (p[0][0] + p[1][0] + p[2][0]) + n[1] * (p[0][1] + p[1][1] + p[2][1]) +
                   n[2] * (p[0][2] + p[1][2] + p[2][2]) <
               0.0;
@@ -206,12 +213,8 @@ static double facing_away(const tessel_mesh *m, const double toward[3], bool is_
     CHECK(n && next && used);
     for (size_t t = 0; t < m->triangle_count; t++) {
         const uint32_t *v = m->triangles + 3 * t;
-        const float *a = m->xyz + 3 * (size_t)v[0], *b = m->xyz + 3 * (size_t)v[1];
-        const float *c = m->xyz + 3 * (size_t)v[2];
-        double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        double w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-        double f[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
-                       u[0] * w[1] - u[1] * w[0]};
+        double p[3][3], f[3];
+        triangle_of(m, t, p, f);
         for (int i = 0; i < 3; i++) {
             used[v[i]] = true;
             for (int k = 0; k < 3; k++)
