@@ -45,6 +45,10 @@ void *tsl_calloc_array(size_t count, size_t size);
 /* Grows *ptr (holding *cap elements of size bytes) to at least need
  * elements, doubling. Returns TESSEL_ERR_NOMEM on failure (ptr unchanged). */
 tessel_status tsl_grow(void **ptr, size_t *cap, size_t need, size_t size);
+/* realloc of *ptr (old_bytes in use) to new_bytes, keeping the contents;
+ * large blocks get the huge-page advice of tsl_alloc_array. Returns
+ * TESSEL_ERR_NOMEM on failure (*ptr unchanged). */
+tessel_status tsl_resize(void **ptr, size_t old_bytes, size_t new_bytes);
 
 /* Progress helper: calls the callback if set; returns TESSEL_ERR_CANCELLED
  * when it asks to stop. */

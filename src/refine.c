@@ -421,12 +421,10 @@ static tessel_status grow(void **p, size_t *cap, size_t need, size_t size)
     size_t n = *cap * 2 > need ? *cap * 2 : need, bytes;
     if (!tsl_mul_size(n, size, &bytes))
         return TESSEL_ERR_NOMEM;
-    void *q = realloc(*p, bytes);
-    if (!q)
-        return TESSEL_ERR_NOMEM;
-    *p = q;
-    *cap = n;
-    return TESSEL_OK;
+    tessel_status st = tsl_resize(p, *cap * size, bytes);
+    if (st == TESSEL_OK)
+        *cap = n;
+    return st;
 }
 
 static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
