@@ -1211,15 +1211,16 @@ static inline void fit_first(const pass_ctx *x, fit_buf *fb, uint32_t s, const t
     const tsl_grid *g = x->g;
     const fit_ctl *f = x->f;
     const float *q = g->sxyz + 3 * (size_t)s;
-    uint32_t *nb = x->nb + (size_t)s * f->k;
     for (size_t j = 0; j < t->cnt; j++) {
         const float *p = g->sxyz + 3 * (size_t)t->pos[j];
         fb->x[j] = p[0] - q[0];
         fb->y[j] = p[1] - q[1];
         fb->z[j] = p[2] - q[2];
-        nb[j] = t->pos[j];
     }
-    x->cnt[s] = (uint16_t)t->cnt;
+    if (x->nb) {
+        memcpy(x->nb + (size_t)s * f->k, t->pos, t->cnt * sizeof *x->nb);
+        x->cnt[s] = (uint16_t)t->cnt;
+    }
     fb->m = fb->filled = t->cnt;
     uint32_t its;
     const float *nn = x->ref_nrm && t->cnt ? x->ref_nrm + 3 * (size_t)t->pos[0] : NULL;
@@ -1515,11 +1516,17 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     for (int i = 0; i < 4; i++)
         if (!(buf[i] = tsl_alloc_array(n, 3 * sizeof(float))))
             st = TESSEL_ERR_NOMEM;
-    nb = tsl_alloc_array(n, (size_t)p.k * sizeof *nb);
-    cnt = tsl_alloc_array(n, sizeof *cnt);
+    /* The neighbour lists serve later passes and the aggregation only
+     * (one pass, as the noisy pipeline runs, writes 120 bytes per point
+     * less). */
+    bool keep_nb = p.passes > 1 || p.aggregate;
+    if (keep_nb) {
+        nb = tsl_alloc_array(n, (size_t)p.k * sizeof *nb);
+        cnt = tsl_alloc_array(n, sizeof *cnt);
+    }
     if (p.aggregate)
         surf = tsl_alloc_array(n, sizeof *surf);
-    if (!nb || !cnt || (p.aggregate && !surf))
+    if ((keep_nb && (!nb || !cnt)) || (p.aggregate && !surf))
         st = TESSEL_ERR_NOMEM;
     if (st != TESSEL_OK)
         goto done;
