@@ -245,25 +245,44 @@ static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int t
         m = d->count;
     float *dist = tsl_alloc_array(m, sizeof *dist);
     float *sorted = tsl_alloc_array(m, sizeof *sorted);
-    if (!dist || !sorted) {
+    uint32_t *slot = tsl_alloc_array(d->count, sizeof *slot);
+    uint32_t *order = tsl_alloc_array(d->count, sizeof *order);
+    if (!dist || !sorted || !slot || !order) {
         free(dist);
         free(sorted);
+        free(slot);
+        free(order);
         return TESSEL_ERR_NOMEM;
     }
-    ptrdiff_t ms = (ptrdiff_t)m;
+    /* The sample: evenly strided (always < count). It is queried in the
+     * index's storage order, so that consecutive queries walk the same
+     * part of the tree (at 10^6 points the tree does not fit in cache and
+     * queries in input order wait on memory); each result goes to its
+     * sample's slot, so the sums below see the same order as before. */
+    for (size_t i = 0; i < d->count; i++)
+        slot[i] = UINT32_MAX;
+    for (size_t s = 0; s < m; s++)
+        slot[(size_t)((double)s * (double)d->count / (double)m)] = (uint32_t)s;
+    tsl_index_order(d->index, order);
+    size_t nq = 0;
+    for (size_t j = 0; j < d->count; j++)
+        if (slot[order[j]] != UINT32_MAX)
+            order[nq++] = order[j];
+    ptrdiff_t ms = (ptrdiff_t)nq;
     int nthreads = tsl_threads(threads);
     (void)nthreads;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(nthreads)
 #endif
-    for (ptrdiff_t s = 0; s < ms; s++) {
-        /* Evenly strided; always < count. */
-        size_t i = (size_t)((double)s * (double)d->count / (double)m);
+    for (ptrdiff_t q = 0; q < ms; q++) {
+        size_t i = order[q];
         uint32_t idx[2];
         float d2[2];
         tessel_index_knn(d->index, d->xyz + 3 * i, 2, idx, d2);
-        dist[s] = sqrtf(d2[1]);
+        dist[slot[i]] = sqrtf(d2[1]);
     }
+    free(slot);
+    free(order);
     memcpy(sorted, dist, m * sizeof *dist);
     *median = median_float(sorted, m);
     free(sorted);
