@@ -190,3 +190,81 @@ size_t tsl_grid_ring(const tsl_grid *g, const uint32_t cc[3], int ring, uint32_t
             }
     return nrun;
 }
+
+/* Points of a strided sample per occupied cell of side `cell`: a small
+ * open-addressing set of the sample's cell keys. *cells gets the number of
+ * occupied cells (of the sample). */
+static double sample_per_cell(const float *xyz, size_t n, size_t stride, const double lo[3],
+                              double cell, size_t *cells)
+{
+    size_t m = (n + stride - 1) / stride, slots = 64;
+    while (slots < 2 * m)
+        slots *= 2;
+    uint64_t *set = tsl_calloc_array(slots, sizeof *set);
+    if (!set) {
+        *cells = 0;
+        return 0.0;
+    }
+    size_t used = 0;
+    for (size_t i = 0; i < n; i += stride) {
+        uint32_t c[3];
+        for (int a = 0; a < 3; a++) {
+            double v = floor(((double)xyz[3 * i + (size_t)a] - lo[a]) / cell);
+            c[a] = v < 0.0 ? 0u : v > 2097151.0 ? 2097151u : (uint32_t)v;
+        }
+        uint64_t key = tsl_morton(c[0], c[1], c[2]) + 1;
+        size_t h = tsl_grid_hash(key) & (slots - 1);
+        while (set[h] && set[h] != key)
+            h = (h + 1) & (slots - 1);
+        if (!set[h]) {
+            set[h] = key;
+            used++;
+        }
+    }
+    free(set);
+    *cells = used;
+    return (double)m / (double)used;
+}
+
+double tsl_grid_knn_cell(const float *xyz, size_t n, size_t k)
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            double v = xyz[3 * i + (size_t)a];
+            lo[a] = v < lo[a] ? v : lo[a];
+            hi[a] = v > hi[a] ? v : hi[a];
+        }
+    double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    if (n < 2 || !(ext > 0.0))
+        return 1.0;
+    /* At most 2^16 sample points; coarse cells that hold 8 to 256 of them,
+     * so that hardly any occupied cell is missed by the sample and the
+     * surface is still nearly flat within one. The first guess is the
+     * spacing of n points on a square of the box's extent. */
+    size_t stride = n > 65536 ? n / 65536 : 1;
+    double cell = 8.0 * ext / sqrt((double)n), per = 0.0;
+    size_t cells = 0;
+    for (int round = 0; round < 40; round++) {
+        if (cell > ext) {
+            cell = ext;
+            per = sample_per_cell(xyz, n, stride, lo, cell, &cells);
+            break;
+        }
+        per = sample_per_cell(xyz, n, stride, lo, cell, &cells);
+        if (cells == 0)
+            return 1.0; /* out of memory: any cell is exact */
+        if (per < 8.0 && cells > 1)
+            cell *= 2.0;
+        else if (per > 256.0 && cell > 1e-30)
+            cell *= 0.5;
+        else
+            break;
+    }
+    /* Points of the whole cloud per occupied cell, and the density they
+     * give (a surface crosses cells of side c with about 2/3 c^2 of its
+     * area each), hence the distance to the k-th neighbour. */
+    double m = per * (double)n / (double)((n + stride - 1) / stride);
+    double rk = cell * sqrt((double)k * (2.0 / 3.0) / (3.141592653589793 * m));
+    return rk > 0.0 && isfinite(rk) ? 1.3 * rk : ext;
+}

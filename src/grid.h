@@ -30,11 +30,26 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
                              int threads);
 void tsl_grid_free(tsl_grid *g);
 
+/* A cell for tsl_grid_build a little wider than the distance from a point
+ * to its k-th nearest (wider cells cost more candidates, narrower ones more
+ * outer rings: 1.3 times is the cheapest measured for the smoothing). The
+ * density comes from how many cells a strided sample of at most 2^16
+ * points occupies in a coarse grid (a surface crosses cells of side c with
+ * about 2/3 c^2 of its area each). The cell changes no result of a search,
+ * only its speed. */
+double tsl_grid_knn_cell(const float *xyz, size_t n, size_t k);
+
 /* Runs of the cells at Chebyshev distance `ring` (0 or 1) from cell cc,
  * appended to run[] (pairs of sorted positions) after nrun runs; returns
  * the new number of runs (at most nrun + 26). */
 size_t tsl_grid_ring(const tsl_grid *g, const uint32_t cc[3], int ring, uint32_t *run,
                      size_t nrun);
+
+/* The mean spacing of the n points g holds (xyz, in their order), exactly
+ * as tessel_cloud_spacing measures it (the same value), with the nearest
+ * neighbours found in g instead of a kd-tree: src/stats.c. */
+tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, int threads,
+                               double *spacing);
 
 static inline uint64_t tsl_spread21(uint32_t v)
 {

@@ -39,6 +39,7 @@
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -1477,10 +1478,27 @@ TSL_CLONES static void aggregate_range(const pass_ctx *x, fit_buf *b, size_t s0,
     }
 }
 
+static double seconds_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
                             const tessel_smooth_params *params,
                             const tessel_callbacks *callbacks, tessel_smooth_stats *stats)
 {
+    double unused;
+    return tsl_smooth_timed(cloud, out, params, callbacks, stats, &unused);
+}
+
+tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
+                               const tessel_smooth_params *params,
+                               const tessel_callbacks *callbacks, tessel_smooth_stats *stats,
+                               double *seconds_spacing)
+{
+    *seconds_spacing = 0.0;
     if (!out)
         return TESSEL_ERR_INVALID_ARG;
     memset(out, 0, sizeof *out);
@@ -1492,18 +1510,40 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
         st = check_cloud(cloud);
     if (st != TESSEL_OK)
         return st;
-    double h;
-    st = resolve_spacing(cloud, p.spacing, &h);
-    if (st != TESSEL_OK)
+
+    const size_t n = cloud->count;
+    int threads = tsl_threads(p.threads);
+    (void)threads;
+    /* The grid comes first: when h is not given, its cells find the
+     * nearest neighbours that measure it (tessel_cloud_spacing's value,
+     * without building a kd-tree). Cells a little wider than the distance
+     * to the k-th neighbour, at most the cut-off 3 sigma_w h. */
+    tsl_grid g;
+    memset(&g, 0, sizeof g);
+    double h = p.spacing, cell = tsl_grid_knn_cell(cloud->xyz, n, p.k);
+    if (h > 0.0)
+        cell = fmin(cell, 3.0 * p.sigma_w * h);
+    st = tsl_grid_build(&g, cloud->xyz, n, cell, threads);
+    if (st == TESSEL_OK && !(h > 0.0)) {
+        double t0 = seconds_now();
+        st = tsl_grid_spacing(&g, cloud->xyz, n, threads, &h);
+        if (st == TESSEL_OK && !isfinite(h))
+            st = TESSEL_ERR_TOO_FEW_POINTS; /* no scale to smooth at */
+        if (st == TESSEL_OK && g.c > 3.0 * p.sigma_w * h) {
+            tsl_grid_free(&g);
+            st = tsl_grid_build(&g, cloud->xyz, n, 3.0 * p.sigma_w * h, threads);
+        }
+        *seconds_spacing = seconds_now() - t0;
+    }
+    if (st != TESSEL_OK) {
+        tsl_grid_free(&g);
         return st;
+    }
     fit_ctl f_first, f_later;
     ctl_setup(&f_first, &p, h, p.sigma_rho);
     ctl_setup(&f_later, &p, h, p.sigma_rho_later);
     f_later.ridge = 0.0; /* see QUAD_RIDGE */
 
-    const size_t n = cloud->count;
-    tsl_grid g;
-    memset(&g, 0, sizeof g);
     float *buf[4] = {NULL, NULL, NULL, NULL}; /* xyz a, xyz b, normals a, b */
     uint32_t *nb = NULL;
     uint16_t *cnt = NULL;
@@ -1543,30 +1583,7 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
         for (int i = 0; i < 3; i++)
             x.viewpoint[i] = cloud->viewpoint[i] - cloud->offset[i];
     }
-    int threads = tsl_threads(p.threads);
-    (void)threads;
     pass_count total = {0, 0, 0};
-
-    /* Cells a little wider than the distance to the k-th neighbour, so
-     * that the 27 cells around a point's own hold its neighbours for
-     * nearly every point (wider cells cost more candidates, narrower ones
-     * more outer rings: 1.3 times is the cheapest measured): a first grid
-     * measures the points per occupied cell, m, which gives the surface
-     * density (a surface crosses cells of side c with about 2/3 c^2 of its
-     * area each), hence that distance. */
-    double cell = fmin(3.0 * h * sqrt((double)p.k / 24.0), f_first.rmax);
-    st = tsl_grid_build(&g, cloud->xyz, n, cell, threads);
-    if (st == TESSEL_OK) {
-        double m = (double)n / (double)g.ncell;
-        double rk = g.c * sqrt((double)p.k * (2.0 / 3.0) / (3.141592653589793 * m));
-        rk = fmin(1.3 * rk, f_first.rmax);
-        if (fabs(rk - g.c) > 0.15 * g.c) {
-            tsl_grid_free(&g);
-            st = tsl_grid_build(&g, cloud->xyz, n, rk, threads);
-        }
-    }
-    if (st != TESSEL_OK)
-        goto done;
     cw.xyz = cloud->xyz;
     cw.g = &g;
     if (cloud->normals) {

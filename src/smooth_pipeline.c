@@ -479,28 +479,19 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     tessel_status st;
     double t_all = now(), t = t_all;
 
-    /* h once for every stage. */
-    double h = p.smooth.spacing;
-    if (!(h > 0.0)) {
-        if ((st = tessel_cloud_spacing(cloud, &h)))
-            goto fail;
-        if (!(h > 0.0)) {
-            st = TESSEL_ERR_TOO_FEW_POINTS; /* every point at one place */
-            goto fail;
-        }
-    }
+    /* h once for every stage: the smoothing measures it (on the grid it
+     * builds for its neighbours) unless it is given. */
+    if ((st = tsl_smooth_timed(cloud, &smoothed, &p.smooth, callbacks, &s.smooth,
+                               &s.seconds_spacing)))
+        goto fail;
+    double h = s.smooth.spacing;
     s.spacing = h;
     p.smooth.spacing = h;
     if (!(p.simplify.cluster.spacing > 0.0))
         p.simplify.cluster.spacing = h;
     if (!(p.simplify.projection.spacing > 0.0))
         p.simplify.projection.spacing = h;
-    s.seconds_spacing = now() - t;
-
-    t = now();
-    if ((st = tessel_smooth(cloud, &smoothed, &p.smooth, callbacks, &s.smooth)))
-        goto fail;
-    s.seconds_smooth = now() - t;
+    s.seconds_smooth = now() - t - s.seconds_spacing;
 
     /* Representatives far enough apart for the noise left (see the
      * params): on clean input small clusters follow thin parts; on noisy

@@ -15,7 +15,7 @@
  * absorbs every later point closer than the tolerance, so the kept points
  * are at least the tolerance apart and the result does not depend on the
  * thread count. */
-#include "internal.h"
+#include "grid.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -231,6 +231,23 @@ static tessel_status distinct_build(const tessel_cloud *cloud, distinct_set *d)
  * shared scans, range scans included, stay below 20. */
 #define SPACING_OUTLIER_MEDIANS 32.0
 
+/* Median of the sample's nearest-neighbour distances dist[0 .. m) (sorted:
+ * scratch of m), and their mean without isolated points. */
+static void spacing_stats(const float *dist, float *sorted, size_t m, double *mean,
+                          double *median)
+{
+    memcpy(sorted, dist, m * sizeof *dist);
+    *median = median_float(sorted, m);
+    double limit = SPACING_OUTLIER_MEDIANS * *median, sum = 0.0;
+    size_t used = 0;
+    for (size_t s = 0; s < m; s++)
+        if (dist[s] <= limit) {
+            sum += dist[s];
+            used++;
+        }
+    *mean = used ? sum / (double)used : 0.0;
+}
+
 /* Mean (without isolated points) and median distance from evenly strided
  * distinct points to their nearest distinct neighbour; both 0 when there
  * are fewer than two. */
@@ -283,17 +300,8 @@ static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int t
     }
     free(slot);
     free(order);
-    memcpy(sorted, dist, m * sizeof *dist);
-    *median = median_float(sorted, m);
+    spacing_stats(dist, sorted, m, mean, median);
     free(sorted);
-    double limit = SPACING_OUTLIER_MEDIANS * *median, sum = 0.0;
-    size_t used = 0;
-    for (size_t s = 0; s < m; s++)
-        if (dist[s] <= limit) {
-            sum += dist[s];
-            used++;
-        }
-    *mean = used ? sum / (double)used : 0.0;
     free(dist);
     return TESSEL_OK;
 }
@@ -389,6 +397,143 @@ tessel_status tessel_cloud_stats_compute(const tessel_cloud *cloud,
     if (st == TESSEL_OK)
         st = outliers_of(&d, p.outlier_k, p.outlier_factor, p.threads, &stats->outliers);
     distinct_free(&d);
+    return st;
+}
+
+/* Rings of cells a nearest-neighbour search on the grid looks through
+ * before it leaves the point to the kd-tree: the cells are several
+ * spacings wide, so only isolated points (far outliers, the grid then
+ * stretched by them) need more. */
+#define SPACING_MAX_RING 3
+
+/* Squared distance from point q to the nearest point of g with other
+ * coordinates: rings of cells around q's until no cell beyond can hold a
+ * nearer one (tsl_grid_box_d2 rounds down). The distances are those of the
+ * kd-tree (same float expression), so the minimum is the same value;
+ * INFINITY when every point equals q, NAN when SPACING_MAX_RING rings do
+ * not settle it. */
+static float nearest_distinct_d2(const tsl_grid *g, const float *q)
+{
+    uint32_t cc[3] = {tsl_grid_cell(g, q, 0), tsl_grid_cell(g, q, 1), tsl_grid_cell(g, q, 2)};
+    float best = INFINITY;
+    for (int64_t ring = 0;; ring++) {
+        if (ring > SPACING_MAX_RING)
+            return NAN;
+        bool any = false; /* some cell of this ring may hold a nearer one */
+        for (int64_t dx = -ring; dx <= ring; dx++) {
+            int64_t x = (int64_t)cc[0] + dx;
+            if (x < 0 || x >= g->dims[0])
+                continue;
+            for (int64_t dy = -ring; dy <= ring; dy++) {
+                int64_t y = (int64_t)cc[1] + dy;
+                if (y < 0 || y >= g->dims[1])
+                    continue;
+                bool side = dx == -ring || dx == ring || dy == -ring || dy == ring;
+                for (int64_t dz = -ring; dz <= ring; dz += side || ring == 0 ? 1 : 2 * ring) {
+                    int64_t z = (int64_t)cc[2] + dz;
+                    if (z < 0 || z >= g->dims[2] || tsl_grid_box_d2(g, q, x, y, z) > best)
+                        continue;
+                    any = true;
+                    size_t ci = tsl_grid_find(g, tsl_morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
+                    if (ci == SIZE_MAX)
+                        continue;
+                    for (uint32_t t = g->start[ci]; t < g->start[ci + 1]; t++) {
+                        const float *p = g->sxyz + 3 * (size_t)t;
+                        if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2])
+                            continue;
+                        float dx2 = p[0] - q[0], dy2 = p[1] - q[1], dz2 = p[2] - q[2];
+                        float d = (dx2 * dx2 + dy2 * dy2) + dz2 * dz2;
+                        best = d < best ? d : best;
+                    }
+                }
+            }
+        }
+        if (!any && ring > 0)
+            break;
+    }
+    return best;
+}
+
+tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, int threads,
+                               double *spacing)
+{
+    *spacing = 0.0;
+    if (n < 2)
+        return TESSEL_ERR_TOO_FEW_POINTS;
+    tessel_stats_params p = tessel_stats_params_default();
+    uint32_t *first = tsl_alloc_array(n, sizeof *first);
+    uint32_t *slot = tsl_alloc_array(n, sizeof *slot);
+    size_t d = 0;
+    tessel_status st = first && slot ? exact_representatives(xyz, n, first, &d)
+                                     : TESSEL_ERR_NOMEM;
+    float *dist = NULL, *sorted = NULL;
+    size_t m = 0;
+    if (st == TESSEL_OK) {
+        /* first[] becomes the first occurrences in order: the distinct
+         * points as distinct_build lists them. */
+        size_t next = 0;
+        for (size_t i = 0; i < n; i++)
+            if (first[i] == i)
+                first[next++] = (uint32_t)i;
+        m = p.sample_size < d ? p.sample_size : d;
+        dist = tsl_alloc_array(m ? m : 1, sizeof *dist);
+        sorted = tsl_alloc_array(m ? m : 1, sizeof *sorted);
+        if (!dist || !sorted)
+            st = TESSEL_ERR_NOMEM;
+    }
+    if (st == TESSEL_OK && d >= 2) {
+        /* The sample of spacing_of, queried in the grid's order (nearby
+         * queries in a row find their cells in cache). */
+        for (size_t i = 0; i < n; i++)
+            slot[i] = UINT32_MAX;
+        for (size_t s = 0; s < m; s++)
+            slot[first[(size_t)((double)s * (double)d / (double)m)]] = (uint32_t)s;
+        size_t nq = 0;
+        for (size_t t = 0; t < n; t++) {
+            uint32_t i = g->perm[t];
+            if (slot[i] != UINT32_MAX)
+                first[nq++] = (uint32_t)t;
+        }
+        long long count = (long long)nq;
+        (void)threads;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
+#endif
+        for (long long k = 0; k < count; k++) {
+            uint32_t t = first[k];
+            dist[slot[g->perm[t]]] = sqrtf(nearest_distinct_d2(g, g->sxyz + 3 * (size_t)t));
+        }
+        /* Points the rings did not settle: the kd-tree of spacing_of. */
+        size_t open = 0;
+        for (size_t k = 0; k < m; k++)
+            open += isnan(dist[k]);
+        distinct_set ds;
+        if (open && (st = distinct_build(&(tessel_cloud){.count = n, .xyz = (float *)xyz},
+                                         &ds)) == TESSEL_OK) {
+            for (size_t k = 0; k < nq; k++) {
+                const float *q = g->sxyz + 3 * (size_t)first[k];
+                float *dk = &dist[slot[g->perm[first[k]]]];
+                if (!isnan(*dk))
+                    continue;
+                uint32_t idx[2];
+                float d2[2];
+                tessel_index_knn(ds.index, q, 2, idx, d2);
+                *dk = sqrtf(d2[1]);
+            }
+            distinct_free(&ds);
+        }
+        double mean, median;
+        if (st == TESSEL_OK) {
+            spacing_stats(dist, sorted, m, &mean, &median);
+            *spacing = mean;
+        }
+    }
+    free(first);
+    free(slot);
+    free(dist);
+    free(sorted);
+    if (st == TESSEL_OK && !(*spacing > 0.0))
+        st = TESSEL_ERR_TOO_FEW_POINTS;
     return st;
 }
 
