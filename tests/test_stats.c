@@ -2,8 +2,10 @@
  * world coordinates; duplicates counted and merged exactly (attributes and
  * organized grid follow); merging with a tolerance; planted far points found
  * as outliers and left out of the spacing; thread count does not change
- * anything. */
+ * anything; the smoothing's grid measures the same spacing as the
+ * kd-tree, bit for bit. */
 #include "tessel.h"
+#include "grid.h"
 #include "test.h"
 
 #include <math.h>
@@ -229,8 +231,71 @@ static void test_edges(void)
     tessel_cloud_free(&c);
 }
 
+/* tsl_grid_spacing against tessel_cloud_spacing: the same value (==) and
+ * status, on a random sphere; with exact copies (one at -0 where the
+ * original is +0); with far points that stretch the grid (the kd-tree
+ * answers them); with a second tiny cluster far away; a line; all points
+ * equal; and through tessel_smooth, which measures h on its grid. */
+static void grid_spacing_case(const char *name, const tessel_cloud *c)
+{
+    double want = 0.0, got = 0.0;
+    tessel_status sw = tessel_cloud_spacing(c, &want);
+    tsl_grid g;
+    CHECK(tsl_grid_build(&g, c->xyz, c->count, tsl_grid_knn_cell(c->xyz, c->count, 30), 2) ==
+          TESSEL_OK);
+    tessel_status sg = tsl_grid_spacing(&g, c->xyz, c->count, 2, &got);
+    CHECK_MSG(sw == sg && want == got, "%s: kd-tree %.17g (%d), grid %.17g (%d)", name, want,
+              (int)sw, got, (int)sg);
+    tsl_grid_free(&g);
+}
+
+static void test_grid_spacing_same(void)
+{
+    tessel_cloud c;
+    size_t n = 20000;
+    CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+    for (size_t i = 0; i < n; i++) {
+        double z = 2.0 * unif() - 1.0, t = 6.283185307179586 * unif(), r = sqrt(1.0 - z * z);
+        c.xyz[3 * i] = (float)(r * cos(t));
+        c.xyz[3 * i + 1] = (float)(r * sin(t));
+        c.xyz[3 * i + 2] = (float)z;
+    }
+    grid_spacing_case("sphere", &c);
+    for (size_t i = 0; i < n; i += 7)
+        memcpy(c.xyz + 3 * (i + 1 < n ? i + 1 : i), c.xyz + 3 * i, 3 * sizeof(float));
+    c.xyz[0] = 0.0f;
+    c.xyz[3] = -0.0f;
+    c.xyz[1] = c.xyz[4], c.xyz[2] = c.xyz[5];
+    grid_spacing_case("copies", &c);
+    for (size_t i = 0; i < 5; i++)
+        c.xyz[3 * (100 + i)] = (float)(1000.0 * (double)(i + 1));
+    grid_spacing_case("far points", &c);
+    for (size_t i = 0; i < 10; i++)
+        for (int a = 0; a < 3; a++)
+            c.xyz[3 * (200 + i) + (size_t)a] = 50.0f + 1e-3f * (float)(i * (size_t)(a + 1));
+    grid_spacing_case("far cluster", &c);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.passes = 1;
+    tessel_cloud out;
+    tessel_smooth_stats st;
+    double want = 0.0;
+    CHECK(tessel_cloud_spacing(&c, &want) == TESSEL_OK);
+    CHECK(tessel_smooth(&c, &out, &p, NULL, &st) == TESSEL_OK && st.spacing == want);
+    tessel_cloud_free(&out);
+    for (size_t i = 0; i < n; i++) {
+        c.xyz[3 * i] = (float)i * 0.01f;
+        c.xyz[3 * i + 1] = c.xyz[3 * i + 2] = 0.0f;
+    }
+    grid_spacing_case("line", &c);
+    for (size_t i = 0; i < 3 * n; i++)
+        c.xyz[i] = 1.0f;
+    grid_spacing_case("all equal", &c);
+    tessel_cloud_free(&c);
+}
+
 int main(void)
 {
+    test_grid_spacing_same();
     test_grid_spacing();
     test_merge_grid_and_tolerance();
     test_outliers();
