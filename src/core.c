@@ -50,7 +50,7 @@ void tsl_diag_set(tessel_diag *diag, const char *file, uint64_t line, int has_of
  * allocate arrays of tens of megabytes at 10^6 points and touch each page
  * once; with 4 KB pages, taking the page faults was a sixth of the noisy
  * pipeline's time at 10^6 points on a virtual machine (docs/smooth.md,
- * "Speed"). Advice only: where the kernel has no huge pages (or they are
+ * section A). Advice only: where the kernel has no huge pages (or they are
  * set to "never") nothing changes, and the contents are the same. */
 #define HUGE_ADVICE_BYTES ((size_t)4 << 20)
 

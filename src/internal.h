@@ -238,15 +238,15 @@ size_t tsl_orient_apply(const uint32_t *tri, size_t nt, const uint8_t *mark, uin
 const tessel_index *tsl_projector_index(const tessel_projector *projector, const float *xyz,
                                         size_t count);
 
-/* tessel_projector_create on the kd-tree `index` of cloud->xyz (built by
- * the caller, borrowed: it must outlive the projector), or on its own
- * kd-tree when index is NULL. */
 /* tessel_smooth, also reporting the seconds spent measuring the spacing
  * when params->spacing is 0 (the noisy pipeline's first column). */
 tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
                                const tessel_smooth_params *params,
                                const tessel_callbacks *callbacks, tessel_smooth_stats *stats,
                                double *seconds_spacing);
+/* tessel_projector_create on the kd-tree `index` of cloud->xyz (built by
+ * the caller, borrowed: it must outlive the projector), or on its own
+ * kd-tree when index is NULL. */
 tessel_status tsl_projector_create_on(tessel_projector **projector, const tessel_cloud *cloud,
                                      const tessel_smooth_params *params,
                                      const tessel_index *index);
