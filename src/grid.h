@@ -94,6 +94,32 @@ static inline size_t tsl_grid_find(const tsl_grid *g, uint64_t key)
     }
 }
 
+/* Calls visit(ctx, x, y, z) for every cell of the grid at Chebyshev
+ * distance ring from cell cc (cc itself for ring 0), in a fixed order:
+ * the whole z columns of the shell's sides, only their two end cells
+ * inside. */
+static inline void tsl_grid_shell(const tsl_grid *g, const uint32_t cc[3], int64_t ring,
+                                  void (*visit)(void *ctx, int64_t x, int64_t y, int64_t z),
+                                  void *ctx)
+{
+    for (int64_t dx = -ring; dx <= ring; dx++) {
+        int64_t x = (int64_t)cc[0] + dx;
+        if (x < 0 || x >= g->dims[0])
+            continue;
+        for (int64_t dy = -ring; dy <= ring; dy++) {
+            int64_t y = (int64_t)cc[1] + dy;
+            if (y < 0 || y >= g->dims[1])
+                continue;
+            int side = dx == -ring || dx == ring || dy == -ring || dy == ring;
+            for (int64_t dz = -ring; dz <= ring; dz += side ? 1 : 2 * ring) {
+                int64_t z = (int64_t)cc[2] + dz;
+                if (z >= 0 && z < g->dims[2])
+                    visit(ctx, x, y, z);
+            }
+        }
+    }
+}
+
 /* Squared distance from q to the box of cell (x, y, z), in float like the
  * point distances, rounded down a little so that it never exceeds the
  * float distance of a point inside. */

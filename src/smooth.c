@@ -936,34 +936,32 @@ static void topk_scan(topk *t, const tsl_grid *g, const float *q, const uint32_t
 
 /* Offers to t every point of the cells at Chebyshev distance ring (>= 2)
  * from cell cc that can still hold one of the k nearest. */
+typedef struct ring_scan {
+    topk *t;
+    const tsl_grid *g;
+    const float *q;
+    float r2max;
+} ring_scan;
+
+static void ring_cell(void *ctx, int64_t x, int64_t y, int64_t z)
+{
+    ring_scan *c = ctx;
+    topk *t = c->t;
+    float worst = t->cnt == t->k ? t->d[t->cnt - 1] : c->r2max;
+    if (tsl_grid_box_d2(c->g, c->q, x, y, z) > worst)
+        return;
+    size_t ci = tsl_grid_find(c->g, tsl_morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
+    if (ci == SIZE_MAX)
+        return;
+    uint32_t run[2] = {c->g->start[ci], c->g->start[ci + 1]};
+    topk_scan(t, c->g, c->q, run, 1, c->r2max);
+}
+
 static void topk_ring(topk *t, const tsl_grid *g, const float *q, const uint32_t cc[3],
                       int64_t ring, float r2max)
 {
-    for (int64_t dx = -ring; dx <= ring; dx++) {
-        int64_t x = (int64_t)cc[0] + dx;
-        if (x < 0 || x >= g->dims[0])
-            continue;
-        for (int64_t dy = -ring; dy <= ring; dy++) {
-            int64_t y = (int64_t)cc[1] + dy;
-            if (y < 0 || y >= g->dims[1])
-                continue;
-            bool side = dx == -ring || dx == ring || dy == -ring || dy == ring;
-            /* Off the sides only the two end cells of the z column. */
-            for (int64_t dz = -ring; dz <= ring; dz += side ? 1 : 2 * ring) {
-                int64_t z = (int64_t)cc[2] + dz;
-                if (z < 0 || z >= g->dims[2])
-                    continue;
-                float worst = t->cnt == t->k ? t->d[t->cnt - 1] : r2max;
-                if (tsl_grid_box_d2(g, q, x, y, z) > worst)
-                    continue;
-                size_t ci = tsl_grid_find(g, tsl_morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
-                if (ci == SIZE_MAX)
-                    continue;
-                uint32_t run[2] = {g->start[ci], g->start[ci + 1]};
-                topk_scan(t, g, q, run, 1, r2max);
-            }
-        }
-    }
+    ring_scan c = {t, g, q, r2max};
+    tsl_grid_shell(g, cc, ring, ring_cell, &c);
 }
 
 /* The candidates of one cell (its 27-cell block) copied side by side, so

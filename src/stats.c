@@ -406,6 +406,35 @@ tessel_status tessel_cloud_stats_compute(const tessel_cloud *cloud,
  * stretched by them) need more. */
 #define SPACING_MAX_RING 3
 
+/* One ring of nearest_distinct_d2's search. */
+typedef struct nearest_scan {
+    const tsl_grid *g;
+    const float *q;
+    float best;
+    bool any; /* some cell of the ring may hold a nearer point */
+} nearest_scan;
+
+static void nearest_cell(void *ctx, int64_t x, int64_t y, int64_t z)
+{
+    nearest_scan *c = ctx;
+    const tsl_grid *g = c->g;
+    const float *q = c->q;
+    if (tsl_grid_box_d2(g, q, x, y, z) > c->best)
+        return;
+    c->any = true;
+    size_t ci = tsl_grid_find(g, tsl_morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
+    if (ci == SIZE_MAX)
+        return;
+    for (uint32_t t = g->start[ci]; t < g->start[ci + 1]; t++) {
+        const float *p = g->sxyz + 3 * (size_t)t;
+        if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2])
+            continue;
+        float dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+        float d = (dx * dx + dy * dy) + dz * dz;
+        c->best = d < c->best ? d : c->best;
+    }
+}
+
 /* Squared distance from point q to the nearest point of g with other
  * coordinates: rings of cells around q's until no cell beyond can hold a
  * nearer one (tsl_grid_box_d2 rounds down). The distances are those of the
@@ -415,43 +444,14 @@ tessel_status tessel_cloud_stats_compute(const tessel_cloud *cloud,
 static float nearest_distinct_d2(const tsl_grid *g, const float *q)
 {
     uint32_t cc[3] = {tsl_grid_cell(g, q, 0), tsl_grid_cell(g, q, 1), tsl_grid_cell(g, q, 2)};
-    float best = INFINITY;
-    for (int64_t ring = 0;; ring++) {
-        if (ring > SPACING_MAX_RING)
-            return NAN;
-        bool any = false; /* some cell of this ring may hold a nearer one */
-        for (int64_t dx = -ring; dx <= ring; dx++) {
-            int64_t x = (int64_t)cc[0] + dx;
-            if (x < 0 || x >= g->dims[0])
-                continue;
-            for (int64_t dy = -ring; dy <= ring; dy++) {
-                int64_t y = (int64_t)cc[1] + dy;
-                if (y < 0 || y >= g->dims[1])
-                    continue;
-                bool side = dx == -ring || dx == ring || dy == -ring || dy == ring;
-                for (int64_t dz = -ring; dz <= ring; dz += side || ring == 0 ? 1 : 2 * ring) {
-                    int64_t z = (int64_t)cc[2] + dz;
-                    if (z < 0 || z >= g->dims[2] || tsl_grid_box_d2(g, q, x, y, z) > best)
-                        continue;
-                    any = true;
-                    size_t ci = tsl_grid_find(g, tsl_morton((uint32_t)x, (uint32_t)y, (uint32_t)z));
-                    if (ci == SIZE_MAX)
-                        continue;
-                    for (uint32_t t = g->start[ci]; t < g->start[ci + 1]; t++) {
-                        const float *p = g->sxyz + 3 * (size_t)t;
-                        if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2])
-                            continue;
-                        float dx2 = p[0] - q[0], dy2 = p[1] - q[1], dz2 = p[2] - q[2];
-                        float d = (dx2 * dx2 + dy2 * dy2) + dz2 * dz2;
-                        best = d < best ? d : best;
-                    }
-                }
-            }
-        }
-        if (!any && ring > 0)
-            break;
+    nearest_scan c = {g, q, INFINITY, false};
+    for (int64_t ring = 0; ring <= SPACING_MAX_RING; ring++) {
+        c.any = false;
+        tsl_grid_shell(g, cc, ring, nearest_cell, &c);
+        if (!c.any && ring > 0)
+            return c.best;
     }
-    return best;
+    return NAN;
 }
 
 tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, int threads,
