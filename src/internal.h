@@ -239,11 +239,15 @@ const tessel_index *tsl_projector_index(const tessel_projector *projector, const
                                         size_t count);
 
 /* tessel_smooth, also reporting the seconds spent measuring the spacing
- * when params->spacing is 0 (the noisy pipeline's first column). */
+ * when params->spacing is 0 (the noisy pipeline's first column). With
+ * grid_order the output's points come in the order of the smoothing's grid
+ * (cells in Morton order, nearby points near in memory) instead of the
+ * input's: the noisy pipeline, which needs no point of the smoothed cloud
+ * by its input index, works on it faster so. */
 tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
                                const tessel_smooth_params *params,
                                const tessel_callbacks *callbacks, tessel_smooth_stats *stats,
-                               double *seconds_spacing);
+                               bool grid_order, double *seconds_spacing);
 /* tessel_projector_create on the kd-tree `index` of cloud->xyz (built by
  * the caller, borrowed: it must outlive the projector), or on its own
  * kd-tree when index is NULL. */

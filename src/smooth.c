@@ -1476,6 +1476,24 @@ TSL_CLONES static void aggregate_range(const pass_ctx *x, fit_buf *b, size_t s0,
     }
 }
 
+/* The smoothed cloud res (positions and normals already in the grid's
+ * order) takes the grid's order for the input's colours and organized
+ * grid too; pos[i] is input point i's place. */
+static void to_grid_order(tessel_cloud *res, const tessel_cloud *cloud, const tsl_grid *g,
+                          const uint32_t *pos)
+{
+    size_t n = cloud->count;
+    if (res->rgb)
+        for (size_t s = 0; s < n; s++)
+            memcpy(res->rgb + 3 * s, cloud->rgb + 3 * (size_t)g->perm[s], 3);
+    if (res->grid) {
+        size_t cells = (size_t)res->width * res->height;
+        for (size_t c = 0; c < cells; c++)
+            if (res->grid[c] != TESSEL_NONE)
+                res->grid[c] = pos[res->grid[c]];
+    }
+}
+
 static double seconds_now(void)
 {
     struct timespec ts;
@@ -1488,13 +1506,13 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
                             const tessel_callbacks *callbacks, tessel_smooth_stats *stats)
 {
     double unused;
-    return tsl_smooth_timed(cloud, out, params, callbacks, stats, &unused);
+    return tsl_smooth_timed(cloud, out, params, callbacks, stats, false, &unused);
 }
 
 tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
                                const tessel_smooth_params *params,
                                const tessel_callbacks *callbacks, tessel_smooth_stats *stats,
-                               double *seconds_spacing)
+                               bool grid_order, double *seconds_spacing)
 {
     *seconds_spacing = 0.0;
     if (!out)
@@ -1546,6 +1564,7 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
     uint32_t *nb = NULL;
     uint16_t *cnt = NULL;
     float *ref0 = NULL;
+    uint32_t *pos = NULL; /* with grid_order: each input point's place */
     fit_surface *surf = NULL;
     crowd cw;
     memset(&cw, 0, sizeof cw);
@@ -1677,7 +1696,8 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
     if (st != TESSEL_OK)
         goto done;
 
-    /* Back to the input's order. */
+    /* Back to the input's order, or the colours and the organized grid to
+     * the grid's. */
     st = tessel_cloud_copy(&res, cloud);
     if (st != TESSEL_OK)
         goto done;
@@ -1692,10 +1712,19 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
 #pragma omp parallel for num_threads(threads) schedule(static)
 #endif
         for (size_t s = 0; s < n; s++) {
-            size_t i = g.perm[s];
+            size_t i = grid_order ? s : g.perm[s];
             memcpy(res.xyz + 3 * i, buf[a] + 3 * s, 3 * sizeof(float));
             memcpy(res.normals + 3 * i, buf[2 + a] + 3 * s, 3 * sizeof(float));
         }
+    }
+    if (grid_order) {
+        if (!(pos = tsl_alloc_array(n, sizeof *pos))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        for (size_t s = 0; s < n; s++)
+            pos[g.perm[s]] = (uint32_t)s;
+        to_grid_order(&res, cloud, &g, pos);
     }
 
     if (stats) {
@@ -1704,7 +1733,7 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
         for (size_t i = 0; i < n; i++) {
             double u[3], v[3], e[3];
             tsl_load(cloud->xyz + 3 * i, u);
-            tsl_load(res.xyz + 3 * i, v);
+            tsl_load(res.xyz + 3 * (pos ? (size_t)pos[i] : i), v);
             tsl_sub(u, v, e);
             double d2 = tsl_dot(e, e);
             sum2 += d2;
@@ -1730,6 +1759,7 @@ done:
     free(nb);
     free(cnt);
     free(ref0);
+    free(pos);
     free(surf);
     tessel_cloud_free(&res);
     if (st != TESSEL_OK && stats)

@@ -481,7 +481,7 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
 
     /* h once for every stage: the smoothing measures it (on the grid it
      * builds for its neighbours) unless it is given. */
-    if ((st = tsl_smooth_timed(cloud, &smoothed, &p.smooth, callbacks, &s.smooth,
+    if ((st = tsl_smooth_timed(cloud, &smoothed, &p.smooth, callbacks, &s.smooth, true,
                                &s.seconds_spacing)))
         goto fail;
     double h = s.smooth.spacing;

@@ -882,8 +882,52 @@ static void test_cancel(void)
     tessel_cloud_free(&c);
 }
 
+/* The noisy pipeline's smoothing in the grid's order: the same points,
+ * normals and statistics as in the input's order, each point's colour
+ * and organized-grid cell going with it. */
+static void test_grid_order(void)
+{
+    tessel_cloud c, a, b;
+    rng_state = 99;
+    make_plane(&c, 60, 0.005);
+    size_t n = c.count;
+    c.rgb = malloc(3 * n);
+    c.grid = malloc(n * sizeof *c.grid);
+    CHECK(c.rgb && c.grid);
+    c.width = 60, c.height = 60;
+    for (size_t i = 0; i < n; i++) {
+        c.rgb[3 * i] = (uint8_t)i, c.rgb[3 * i + 1] = (uint8_t)(i >> 8), c.rgb[3 * i + 2] = 7;
+        c.grid[n - 1 - i] = (uint32_t)i; /* cells in reverse point order */
+    }
+    tessel_smooth_params p = tessel_smooth_params_default();
+    p.passes = 1;
+    tessel_smooth_stats sa, sb;
+    double t;
+    CHECK(tsl_smooth_timed(&c, &a, &p, NULL, &sa, false, &t) == TESSEL_OK);
+    CHECK(tsl_smooth_timed(&c, &b, &p, NULL, &sb, true, &t) == TESSEL_OK);
+    CHECK(sa.spacing == sb.spacing && sa.rms_displacement == sb.rms_displacement &&
+          sa.max_displacement == sb.max_displacement);
+    size_t moved = 0, same = 0;
+    for (size_t cell = 0; cell < n; cell++) {
+        uint32_t i = a.grid[cell], j = b.grid[cell];
+        CHECK(i < n && j < n);
+        if (i >= n || j >= n)
+            continue;
+        moved += i != j;
+        same += memcmp(a.xyz + 3 * i, b.xyz + 3 * j, 3 * sizeof(float)) == 0 &&
+                memcmp(a.normals + 3 * i, b.normals + 3 * j, 3 * sizeof(float)) == 0 &&
+                memcmp(a.rgb + 3 * i, b.rgb + 3 * j, 3) == 0;
+    }
+    CHECK_MSG(same == n, "%zu of %zu cells hold the same point", same, n);
+    CHECK(moved > n / 2); /* the orders do differ */
+    tessel_cloud_free(&a);
+    tessel_cloud_free(&b);
+    tessel_cloud_free(&c);
+}
+
 int main(void)
 {
+    test_grid_order();
     test_plane();
     test_sphere();
     test_outliers();
