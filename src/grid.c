@@ -228,8 +228,14 @@ static double sample_per_cell(const float *xyz, size_t n, size_t stride, const d
 
 double tsl_grid_knn_cell(const float *xyz, size_t n, size_t k)
 {
+    /* At most 2^16 sample points (their box is all that is needed: the
+     * cell only has to fit the density); coarse cells that hold 8 to 256
+     * of them, so that hardly any occupied cell is missed by the sample
+     * and the surface is still nearly flat within one. The first guess is
+     * the spacing of n points on a square of the box's extent. */
+    size_t stride = n > 65536 ? n / 65536 : 1;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t i = 0; i < n; i++)
+    for (size_t i = 0; i < n; i += stride)
         for (int a = 0; a < 3; a++) {
             double v = xyz[3 * i + (size_t)a];
             lo[a] = v < lo[a] ? v : lo[a];
@@ -238,11 +244,6 @@ double tsl_grid_knn_cell(const float *xyz, size_t n, size_t k)
     double ext = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
     if (n < 2 || !(ext > 0.0))
         return 1.0;
-    /* At most 2^16 sample points; coarse cells that hold 8 to 256 of them,
-     * so that hardly any occupied cell is missed by the sample and the
-     * surface is still nearly flat within one. The first guess is the
-     * spacing of n points on a square of the box's extent. */
-    size_t stride = n > 65536 ? n / 65536 : 1;
     double cell = 8.0 * ext / sqrt((double)n), per = 0.0;
     size_t cells = 0;
     for (int round = 0; round < 40; round++) {

@@ -231,6 +231,14 @@ static tessel_status distinct_build(const tessel_cloud *cloud, distinct_set *d)
  * shared scans, range scans included, stay below 20. */
 #define SPACING_OUTLIER_MEDIANS 32.0
 
+/* The s-th of m evenly strided picks among count (always < count): the
+ * spacing sample, which spacing_of and tsl_grid_spacing must draw alike
+ * for their values to agree. */
+static inline size_t sample_pick(size_t s, size_t count, size_t m)
+{
+    return (size_t)((double)s * (double)count / (double)m);
+}
+
 /* Median of the sample's nearest-neighbour distances dist[0 .. m) (sorted:
  * scratch of m), and their mean without isolated points. */
 static void spacing_stats(const float *dist, float *sorted, size_t m, double *mean,
@@ -271,7 +279,7 @@ static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int t
         free(order);
         return TESSEL_ERR_NOMEM;
     }
-    /* The sample: evenly strided (always < count). It is queried in the
+    /* The sample, evenly strided. It is queried in the
      * index's storage order, so that consecutive queries walk the same
      * part of the tree (at 10^6 points the tree does not fit in cache and
      * queries in input order wait on memory); each result goes to its
@@ -279,7 +287,7 @@ static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int t
     for (size_t i = 0; i < d->count; i++)
         slot[i] = UINT32_MAX;
     for (size_t s = 0; s < m; s++)
-        slot[(size_t)((double)s * (double)d->count / (double)m)] = (uint32_t)s;
+        slot[sample_pick(s, d->count, m)] = (uint32_t)s;
     tsl_index_order(d->index, order);
     size_t nq = 0;
     for (size_t j = 0; j < d->count; j++)
@@ -487,7 +495,7 @@ tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, in
         for (size_t i = 0; i < n; i++)
             slot[i] = UINT32_MAX;
         for (size_t s = 0; s < m; s++)
-            slot[first[(size_t)((double)s * (double)d / (double)m)]] = (uint32_t)s;
+            slot[first[sample_pick(s, d, m)]] = (uint32_t)s;
         size_t nq = 0;
         for (size_t t = 0; t < n; t++) {
             uint32_t i = g->perm[t];
