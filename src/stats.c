@@ -462,6 +462,83 @@ static float nearest_distinct_d2(const tsl_grid *g, const float *q)
     return NAN;
 }
 
+/* A point of a crowded cell: coordinates and sorted position. */
+typedef struct run_point {
+    float x[3];
+    uint32_t t;
+} run_point;
+
+static int cmp_run_point(const void *a, const void *b)
+{
+    const run_point *p = a, *q = b;
+    for (int c = 0; c < 3; c++)
+        if (p->x[c] != q->x[c])
+            return p->x[c] < q->x[c] ? -1 : 1;
+    return (p->t > q->t) - (p->t < q->t);
+}
+
+/* Cells holding more points than this sort them to find their copies. */
+#define FIRST_SCAN_MAX 64
+
+/* is_first[i] = 1 when no point of smaller index equals point i (the
+ * distinct points of exact_representatives). Equal points share a cell,
+ * whose run keeps increasing index order, so each cell is settled on its
+ * own: in parallel, reading the grid's sorted copy in order. */
+static tessel_status grid_first_occurrences(const tsl_grid *g, int threads, uint8_t *is_first)
+{
+    long long ncell = (long long)g->ncell;
+    const float *xyz = g->sxyz;
+    size_t nbig = 0, big_len = 0;
+    for (size_t c = 0; c < g->ncell; c++) {
+        size_t len = g->start[c + 1] - g->start[c];
+        if (len > FIRST_SCAN_MAX) {
+            nbig++;
+            big_len = len > big_len ? len : big_len;
+        }
+    }
+    (void)threads;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1024) num_threads(tsl_threads(threads))
+#endif
+    for (long long c = 0; c < ncell; c++) {
+        size_t b = g->start[c], e = g->start[c + 1];
+        if (e - b > FIRST_SCAN_MAX)
+            continue;
+        for (size_t t = b; t < e; t++) {
+            const float *p = xyz + 3 * t;
+            uint8_t first = 1;
+            for (size_t u = b; u < t && first; u++) {
+                const float *q = xyz + 3 * u;
+                first = !(q[0] == p[0] && q[1] == p[1] && q[2] == p[2]);
+            }
+            is_first[g->perm[t]] = first;
+        }
+    }
+    if (nbig) {
+        /* Crowded cells (many copies of one point): sorted, serially. */
+        run_point *big = tsl_alloc_array(big_len, sizeof *big);
+        if (!big)
+            return TESSEL_ERR_NOMEM;
+        for (size_t c = 0; c < g->ncell; c++) {
+            size_t b = g->start[c], len = g->start[c + 1] - b;
+            if (len <= FIRST_SCAN_MAX)
+                continue;
+            for (size_t j = 0; j < len; j++) {
+                memcpy(big[j].x, xyz + 3 * (b + j), sizeof big[j].x);
+                big[j].t = (uint32_t)(b + j);
+            }
+            qsort(big, len, sizeof *big, cmp_run_point);
+            for (size_t j = 0; j < len; j++) {
+                const float *p = big[j].x, *q = j ? big[j - 1].x : NULL;
+                is_first[g->perm[big[j].t]] =
+                    !q || !(q[0] == p[0] && q[1] == p[1] && q[2] == p[2]);
+            }
+        }
+        free(big);
+    }
+    return TESSEL_OK;
+}
+
 tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, int threads,
                                double *spacing)
 {
@@ -471,18 +548,18 @@ tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, in
     tessel_stats_params p = tessel_stats_params_default();
     uint32_t *first = tsl_alloc_array(n, sizeof *first);
     uint32_t *slot = tsl_alloc_array(n, sizeof *slot);
+    uint8_t *is_first = tsl_alloc_array(n, 1);
     size_t d = 0;
-    tessel_status st = first && slot ? exact_representatives(xyz, n, first, &d)
-                                     : TESSEL_ERR_NOMEM;
+    tessel_status st = first && slot && is_first ? grid_first_occurrences(g, threads, is_first)
+                                                 : TESSEL_ERR_NOMEM;
     float *dist = NULL, *sorted = NULL;
     size_t m = 0;
     if (st == TESSEL_OK) {
-        /* first[] becomes the first occurrences in order: the distinct
-         * points as distinct_build lists them. */
-        size_t next = 0;
+        /* The first occurrences in order: the distinct points as
+         * distinct_build lists them. */
         for (size_t i = 0; i < n; i++)
-            if (first[i] == i)
-                first[next++] = (uint32_t)i;
+            if (is_first[i])
+                first[d++] = (uint32_t)i;
         m = p.sample_size < d ? p.sample_size : d;
         dist = tsl_alloc_array(m ? m : 1, sizeof *dist);
         sorted = tsl_alloc_array(m ? m : 1, sizeof *sorted);
@@ -503,7 +580,6 @@ tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, in
                 first[nq++] = (uint32_t)t;
         }
         long long count = (long long)nq;
-        (void)threads;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
 #endif
@@ -538,6 +614,7 @@ tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, in
     }
     free(first);
     free(slot);
+    free(is_first);
     free(dist);
     free(sorted);
     if (st == TESSEL_OK && !(*spacing > 0.0))

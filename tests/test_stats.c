@@ -234,8 +234,9 @@ static void test_edges(void)
 /* tsl_grid_spacing against tessel_cloud_spacing: the same value (==) and
  * status, on a random sphere; with exact copies (one at -0 where the
  * original is +0); with far points that stretch the grid (the kd-tree
- * answers them); with a second tiny cluster far away; a line; all points
- * equal; and through tessel_smooth, which measures h on its grid. */
+ * answers them); with a second tiny cluster far away; with many copies of
+ * few points (crowded cells); a line; all points equal; and through
+ * tessel_smooth, which measures h on its grid. */
 static void grid_spacing_case(const char *name, const tessel_cloud *c)
 {
     double want = 0.0, got = 0.0;
@@ -282,6 +283,13 @@ static void test_grid_spacing_same(void)
     CHECK(tessel_cloud_spacing(&c, &want) == TESSEL_OK);
     CHECK(tessel_smooth(&c, &out, &p, NULL, &st) == TESSEL_OK && st.spacing == want);
     tessel_cloud_free(&out);
+    /* 250 distinct points, each copied 80 times in interleaved order:
+     * cells of more than 64 points, where copies are found by sorting. */
+    float base[3 * 250];
+    memcpy(base, c.xyz + 3 * 1000, sizeof base);
+    for (size_t i = 0; i < n; i++)
+        memcpy(c.xyz + 3 * i, base + 3 * ((i * 7919) % 250), 3 * sizeof(float));
+    grid_spacing_case("crowded copies", &c);
     for (size_t i = 0; i < n; i++) {
         c.xyz[3 * i] = (float)i * 0.01f;
         c.xyz[3 * i + 1] = c.xyz[3 * i + 2] = 0.0f;
