@@ -192,19 +192,14 @@ size_t tsl_grid_ring(const tsl_grid *g, const uint32_t cc[3], int ring, uint32_t
 }
 
 /* Points of a strided sample per occupied cell of side `cell`: a small
- * open-addressing set of the sample's cell keys. *cells gets the number of
- * occupied cells (of the sample). */
+ * open-addressing set (slots entries, a power of two of at least twice
+ * the sample, cleared here) of the sample's cell keys. *cells gets the
+ * number of occupied cells (of the sample). */
 static double sample_per_cell(const float *xyz, size_t n, size_t stride, const double lo[3],
-                              double cell, size_t *cells)
+                              double cell, uint64_t *set, size_t slots, size_t *cells)
 {
-    size_t m = (n + stride - 1) / stride, slots = 64;
-    while (slots < 2 * m)
-        slots *= 2;
-    uint64_t *set = tsl_calloc_array(slots, sizeof *set);
-    if (!set) {
-        *cells = 0;
-        return 0.0;
-    }
+    size_t m = (n + stride - 1) / stride;
+    memset(set, 0, slots * sizeof *set);
     size_t used = 0;
     for (size_t i = 0; i < n; i += stride) {
         uint32_t c[3];
@@ -221,7 +216,6 @@ static double sample_per_cell(const float *xyz, size_t n, size_t stride, const d
             used++;
         }
     }
-    free(set);
     *cells = used;
     return (double)m / (double)used;
 }
@@ -245,16 +239,21 @@ double tsl_grid_knn_cell(const float *xyz, size_t n, size_t k)
     if (n < 2 || !(ext > 0.0))
         return 1.0;
     double cell = 8.0 * ext / sqrt((double)n), per = 0.0;
-    size_t cells = 0;
+    /* One set for every round (fresh pages for each would cost more than
+     * the counting). */
+    size_t slots = 64, cells = 0;
+    while (slots < 2 * ((n + stride - 1) / stride))
+        slots *= 2;
+    uint64_t *set = tsl_alloc_array(slots, sizeof *set);
+    if (!set)
+        return 1.0; /* out of memory: any cell is exact */
     for (int round = 0; round < 40; round++) {
         if (cell > ext) {
             cell = ext;
-            per = sample_per_cell(xyz, n, stride, lo, cell, &cells);
+            per = sample_per_cell(xyz, n, stride, lo, cell, set, slots, &cells);
             break;
         }
-        per = sample_per_cell(xyz, n, stride, lo, cell, &cells);
-        if (cells == 0)
-            return 1.0; /* out of memory: any cell is exact */
+        per = sample_per_cell(xyz, n, stride, lo, cell, set, slots, &cells);
         if (per < 8.0 && cells > 1)
             cell *= 2.0;
         else if (per > 256.0 && cell > 1e-30)
@@ -262,6 +261,7 @@ double tsl_grid_knn_cell(const float *xyz, size_t n, size_t k)
         else
             break;
     }
+    free(set);
     /* Points of the whole cloud per occupied cell, and the density they
      * give (a surface crosses cells of side c with about 2/3 c^2 of its
      * area each), hence the distance to the k-th neighbour. */
