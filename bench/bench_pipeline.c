@@ -4,24 +4,32 @@
  *   1. sizes: a fixed-seed torus (radii 1 and 0.35) sampled at random with
  *      Gaussian noise of --noise times the mean spacing (default 0.5; the
  *      shared .pd.n05 scans have about 1), 10^4 .. 10^7 points (the
- *      largest given by --max); wall seconds of each stage, wall and CPU
- *      seconds of the whole pipeline, input points per (wall) second;
- *      --tile N: the front's tile_points (0: one front);
+ *      largest given by --max), each size in its own process (its peak
+ *      memory is its own) and run --runs times (default 3): medians of the
+ *      wall seconds of each stage and of the whole pipeline's wall and CPU
+ *      seconds, input points per wall second and per CPU second (the
+ *      latter times the thread count is what the cores give when nothing
+ *      else runs on them), and the peak resident bytes per input point
+ *      (input cloud included); --tile N: the front's tile_points (0: one
+ *      front);
  *   2. with --data DIR: every NAME.pd.n05.ply and NAME.pd.ply in DIR, with
  *      the result's quality against NAME.gt.ply (F-score at 1% of the
  *      diagonal, Chamfer distance, boundary and non-manifold edges,
  *      self-intersecting pairs, components) from tessel_mesh_check, and
  *      --out DIR writes the meshes.
  *
- * usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K]
+ * usage: bench_pipeline [--max N] [--runs R] [--threads T] [--refine R] [--refine-k K]
  *                       [--tile N] [--noise X] [--data DIR] [--out DIR] [--skip-sizes] */
 #include "tessel.h"
 #include "bench_data.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 static uint64_t rng_state;
 static double noise_h = 0.5;
@@ -67,34 +75,89 @@ static void header(void)
            "triangles", "border");
 }
 
-static void run_sizes(size_t max, const tessel_smooth_recon_params *p)
+#define MAX_RUNS 15
+
+static double median(double *v, int n)
 {
-    printf("Noisy torus, random sampling, noise %.2g h; wall seconds per stage "
-           "(h = spacing estimate; cluster = clusters + representatives), cpu = CPU "
-           "seconds of all threads\n",
-           noise_h);
-    header();
-    for (size_t n = 10000; n <= max; n *= 10) {
-        tessel_cloud c;
-        if (!noisy_torus(&c, n, 42 + n)) {
-            fprintf(stderr, "bench_pipeline: out of memory at %zu points\n", n);
-            return;
+    for (int i = 1; i < n; i++)
+        for (int j = i; j > 0 && v[j] < v[j - 1]; j--) {
+            double t = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = t;
         }
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* One size, runs times on the same cloud: the medians of every column. */
+static int run_size(size_t n, int runs, const tessel_smooth_recon_params *p)
+{
+    tessel_cloud c;
+    if (!noisy_torus(&c, n, 42 + n)) {
+        fprintf(stderr, "bench_pipeline: out of memory at %zu points\n", n);
+        return 1;
+    }
+    double col[7][MAX_RUNS];
+    tessel_smooth_recon_stats s;
+    for (int r = 0; r < runs; r++) {
         tessel_mesh m;
-        tessel_smooth_recon_stats s;
         double t0 = bench_now(), c0 = bench_cpu_now();
         tessel_status st = tessel_reconstruct_smooth(&c, p, NULL, &m, &s);
         double secs = bench_now() - t0, cpu = bench_cpu_now() - c0;
+        tessel_mesh_free(&m);
         if (st != TESSEL_OK) {
             fprintf(stderr, "bench_pipeline: %zu points: %s\n", n, tessel_status_str(st));
-        } else {
-            char name[64];
-            snprintf(name, sizeof name, "torus %.0e", (double)n);
-            print_row(name, n, secs, cpu, &s);
+            tessel_cloud_free(&c);
+            return 1;
         }
-        tessel_mesh_free(&m);
-        tessel_cloud_free(&c);
+        double v[7] = {s.seconds_spacing, s.seconds_smooth, s.seconds_simplify, s.seconds_front,
+                       s.seconds_refine, secs, cpu};
+        for (int k = 0; k < 7; k++)
+            col[k][r] = v[k];
     }
+    tessel_cloud_free(&c);
+    double med[7];
+    for (int k = 0; k < 7; k++)
+        med[k] = median(col[k], runs);
+    printf("torus %-16.0e %10zu %8.3f %8.3f %8.3f %8.3f %8.3f %8.3f %8.3f %9.3f %10.3f %8.1f "
+           "%9zu %10zu %8zu\n",
+           (double)n, n, med[0], med[1], med[2], med[3], med[4], med[5], med[6],
+           (double)n / med[5] / 1e6, (double)n / med[6] / 1e6,
+           (double)bench_peak_rss_bytes() / (double)n, s.representatives, s.triangles,
+           s.border_edges);
+    return 0;
+}
+
+/* Each size in its own process: its peak memory is its own. */
+static int in_child(size_t n, int runs, const tessel_smooth_recon_params *p)
+{
+    fflush(stdout);
+    pid_t pid = fork();
+    if (pid < 0)
+        return 1;
+    if (pid == 0) {
+        int rc = run_size(n, runs, p);
+        fflush(stdout);
+        _exit(rc);
+    }
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR)
+        ;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 1;
+}
+
+static void run_sizes(size_t max, int runs, const tessel_smooth_recon_params *p)
+{
+    printf("Noisy torus, random sampling, noise %.2g h; medians of %d runs: wall seconds per "
+           "stage (h = spacing estimate; cluster = clusters + representatives), total wall "
+           "and cpu (CPU seconds of all threads), million input points per wall second and "
+           "per CPU second, peak resident bytes per input point\n",
+           noise_h, runs);
+    printf("%-22s %10s %8s %8s %8s %8s %8s %8s %8s %9s %10s %8s %9s %10s %8s\n", "input",
+           "points", "h (s)", "smooth", "cluster", "front", "refine", "total", "cpu",
+           "Mpts/s", "Mpts/cpu-s", "B/pt", "reps", "triangles", "border");
+    for (size_t n = 10000; n <= max; n *= 10)
+        if (in_child(n, runs, p))
+            return;
 }
 
 static void run_file(const char *dir, const char *name, const char *suffix, const char *out,
@@ -145,12 +208,16 @@ static void run_file(const char *dir, const char *name, const char *suffix, cons
 int main(int argc, char **argv)
 {
     size_t max = 1000000;
+    int runs = 3;
     const char *dir = NULL, *out = NULL;
     int skip_sizes = 0;
     tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--max") && i + 1 < argc)
             max = (size_t)strtod(argv[++i], NULL);
+        else if (!strcmp(argv[i], "--runs") && i + 1 < argc &&
+                 (runs = atoi(argv[i + 1])) >= 1 && runs <= MAX_RUNS)
+            i++;
         else if (!strcmp(argv[i], "--threads") && i + 1 < argc)
             p.threads = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--refine") && i + 1 < argc)
@@ -170,13 +237,14 @@ int main(int argc, char **argv)
             skip_sizes = 1;
         else {
             fprintf(stderr,
-                    "usage: bench_pipeline [--max N] [--threads T] [--refine R] [--refine-k K] "
+                    "usage: bench_pipeline [--max N] [--runs R (1..15)] [--threads T] [--refine R] "
+                    "[--refine-k K] "
                     "[--tile N] [--noise X] [--data DIR] [--out DIR] [--skip-sizes]\n");
             return 1;
         }
     }
     if (!skip_sizes)
-        run_sizes(max, &p);
+        run_sizes(max, runs, &p);
     if (dir) {
         printf("\nFiles in %s (quality against NAME.gt.ply; F-score at 1%% of its "
                "diagonal)\n",
