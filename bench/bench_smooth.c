@@ -561,9 +561,11 @@ static void crease_rows(const char *name, const tri_grid *g, const tessel_cloud 
 
 /* ---- 2. real data ---- */
 
-/* Variants of the aggregation table: quadric, aggregate, passes, sigma_w. */
-static const double agg_variants[][4] = {
-    {1, 0, 2, 3}, {1, 1, 2, 3}, {1, 1, 3, 3}, {0, 0, 2, 3}, {0, 1, 2, 3}, {0, 1, 2, 2.5}};
+/* Variants of the aggregation table: quadric, aggregate, passes, sigma_w,
+ * exclude_self. */
+static const double agg_variants[][5] = {
+    {1, 0, 2, 3, 0}, {1, 1, 2, 3, 0}, {1, 1, 3, 3, 0}, {0, 0, 2, 3, 0}, {0, 1, 2, 3, 0},
+    {0, 1, 2, 2.5, 0}, {1, 0, 2, 3, 1}, {1, 1, 2, 3, 1}, {1, 1, 3, 3, 1}};
 #define N_AGG (sizeof agg_variants / sizeof *agg_variants)
 
 /* The scans with a noisy sample and a reference surface in the data folder. */
@@ -741,6 +743,7 @@ static void bench_data(const char *dir, uint32_t passes)
             q.aggregate = (int)agg_variants[v][1];
             q.passes = (uint32_t)agg_variants[v][2];
             q.sigma_w = agg_variants[v][3];
+            q.exclude_self = (int)agg_variants[v][4];
             t0 = bench_now();
             if (tessel_smooth(&c, &s2, &q, NULL, NULL) != TESSEL_OK)
                 return;
@@ -757,19 +760,21 @@ static void bench_data(const char *dir, uint32_t passes)
         tessel_cloud_free(&c);
         tessel_mesh_free(&gt);
     }
-    printf("\nAggregation (params.aggregate): RMS gain (wall seconds)\n\n");
-    printf("| operator | aggregate | passes | sigma_w |");
+    printf("\nAggregation and exclusion (params.aggregate, params.exclude_self): RMS gain "
+           "(wall seconds)\n\n");
+    printf("| operator | aggregate | passes | sigma_w | exclude self |");
     for (size_t f = 0; f < 3; f++)
         if (have[f])
             printf(" %s |", names[f]);
-    printf("\n|---|---|---|---|");
+    printf("\n|---|---|---|---|---|");
     for (size_t f = 0; f < 3; f++)
         if (have[f])
             printf("---|");
     printf("\n");
     for (size_t v = 0; v < N_AGG; v++) {
-        printf("| %s | %s | %.0f | %.1f |", agg_variants[v][0] ? "quadric" : "plane",
-               agg_variants[v][1] ? "yes" : "no", agg_variants[v][2], agg_variants[v][3]);
+        printf("| %s | %s | %.0f | %.1f | %s |", agg_variants[v][0] ? "quadric" : "plane",
+               agg_variants[v][1] ? "yes" : "no", agg_variants[v][2], agg_variants[v][3],
+               agg_variants[v][4] ? "yes" : "no");
         for (size_t f = 0; f < 3; f++)
             if (have[f])
                 printf(" %.2fx (%.3f) |", agg_gain[f][v], agg_time[f][v]);

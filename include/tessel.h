@@ -927,6 +927,23 @@ typedef struct tessel_smooth_params {
                                  section E), for about half again the
                                  time and 76 bytes per point. 0 (default):
                                  off; other values are invalid */
+    int exclude_self;         /* 1: the point being moved, and any exact
+                                 copy of it, is left out of its own fit
+                                 (the paper's neighbourhood N(p) read as
+                                 the points around p), so its own noise
+                                 does not pull the fitted surface toward
+                                 it. Helps where the noise is about a
+                                 spacing or more and the surface is flat
+                                 over the neighbourhood; costs where the
+                                 noise is small or the surface curves
+                                 within a few spacings, where the point
+                                 itself pulls the fit back onto the
+                                 surface (docs/smooth.md, section E).
+                                 0 (default): it enters its fit with the
+                                 largest weight; the noisy pipeline's
+                                 cluster sizes are calibrated with 0.
+                                 Projections of other points are the same
+                                 either way; other values are invalid */
 } tessel_smooth_params;
 TESSEL_API tessel_smooth_params tessel_smooth_params_default(void);
 

@@ -72,7 +72,8 @@ typedef struct fit_ctl {
     double quad_max; /* largest height of the quadric above the plane */
     double ridge;    /* penalty on the quadric's curvature terms */
     uint32_t k, max_iterations, min_neighbors;
-    int quadric;     /* 1: height from the quadric over the plane */
+    int quadric;      /* 1: height from the quadric over the plane */
+    int exclude_self; /* 1: neighbours at the query's own position stay out */
 } fit_ctl;
 
 struct tessel_projector {
@@ -102,6 +103,7 @@ tessel_smooth_params tessel_smooth_params_default(void)
     p.quadric = 1;
     p.sigma_rho_later = 1.0;
     p.aggregate = 0;
+    p.exclude_self = 0;
     return p;
 }
 
@@ -125,6 +127,8 @@ static tessel_status check_params(const tessel_smooth_params *p)
     if (p->quadric != 0 && p->quadric != 1)
         return TESSEL_ERR_INVALID_ARG;
     if (p->aggregate != 0 && p->aggregate != 1)
+        return TESSEL_ERR_INVALID_ARG;
+    if (p->exclude_self != 0 && p->exclude_self != 1)
         return TESSEL_ERR_INVALID_ARG;
     if (!(p->sigma_rho_later > 0.0) || !isfinite(p->sigma_rho_later))
         return TESSEL_ERR_INVALID_ARG;
@@ -151,6 +155,7 @@ static void ctl_setup(fit_ctl *f, const tessel_smooth_params *p, double h, doubl
     f->quad_max = 2.0 * sr;
     f->ridge = QUAD_RIDGE;
     f->quadric = p->quadric;
+    f->exclude_self = p->exclude_self;
     f->k = p->k;
     f->max_iterations = p->max_iterations;
     f->min_neighbors = p->min_neighbors;
@@ -600,6 +605,12 @@ TSL_CLONES static bool robust_fit(const fit_ctl *f, fit_buf *b, const float *sta
         b->ew[j] = -(b->x[j] * b->x[j] + b->y[j] * b->y[j] + b->z[j] * b->z[j]) * inv_2sw2;
     for (size_t j = 0; j < mp; j++)
         b->on[j] = j < b->m ? 1.0f : 0.0f;
+    /* The point itself (offset exactly 0) would enter with the largest
+     * weight and keep a share of its own noise (its leverage). */
+    if (f->exclude_self)
+        for (size_t j = 0; j < b->m; j++)
+            if (b->x[j] == 0.0f && b->y[j] == 0.0f && b->z[j] == 0.0f)
+                b->on[j] = 0.0f;
     const float inv_2sr2 = (float)f->inv_2sr2;
     const double inv_h = 1.0 / f->h;
     double t = 0.0;

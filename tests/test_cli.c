@@ -208,8 +208,9 @@ static double sphere_rms_of(const char *path)
 }
 
 /* tessel smooth on a noisy sphere (radial noise of about the spacing):
- * the output is closer to the sphere, --aggregate closer still, and the
- * summary reports the options. */
+ * the output is closer to the sphere, --aggregate closer still, with each
+ * point out of its own fit (--exclude-self) still closer than the input,
+ * and the summary reports the options. */
 static void test_smooth(void)
 {
     tessel_cloud c;
@@ -232,13 +233,19 @@ static void test_smooth(void)
     CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
     double before = sphere_rms_of(in);
     snprintf(args, sizeof args, "smooth %s %s --json", in, out);
-    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"aggregate\": 0"));
+    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"aggregate\": 0") &&
+          strstr(slurp("out.txt"), "\"exclude_self\": 0"));
     double plain = sphere_rms_of(out);
     snprintf(args, sizeof args, "smooth %s %s --aggregate --json", in, out);
     CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"aggregate\": 1"));
     double agg = sphere_rms_of(out);
-    CHECK_MSG(plain > 0 && plain < before / 2 && agg > 0 && agg < plain,
-              "rms %g -> %g, aggregated %g", before, plain, agg);
+    snprintf(args, sizeof args, "smooth %s %s --exclude-self --json", in, out);
+    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"exclude_self\": 1"));
+    double excl = sphere_rms_of(out);
+    CHECK_MSG(plain > 0 && plain < before / 2 && agg > 0 && agg < plain && excl > 0 &&
+                  excl < before / 2 && excl != plain,
+              "rms %g -> %g, aggregated %g, each point out of its own fit %g", before, plain,
+              agg, excl);
     snprintf(args, sizeof args, "smooth %s %s --passes 0", in, out);
     CHECK(run(args) == 1);
     tessel_cloud_free(&c);

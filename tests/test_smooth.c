@@ -647,6 +647,37 @@ static void test_copies_beyond_k(void)
     }
 }
 
+/* A point is left out of its own fit (exclude_self; off by default): on a
+ * clean plane, one point raised by half a spacing (well within the robust
+ * scale, so no outlier) comes back onto the plane, since its neighbours
+ * alone define the fit; with the point in its fit it keeps a share of its
+ * offset. */
+static void test_exclude_self(void)
+{
+    rng_state = 21;
+    const size_t side = 60;
+    tessel_cloud c, with, without;
+    make_plane(&c, side, 0.0);
+    const size_t raised = (side / 2) * side + side / 2;
+    const double h = 1.0 / side;
+    c.xyz[3 * raised + 2] = (float)(0.5 * h);
+    tessel_smooth_params p = tessel_smooth_params_default();
+    CHECK(p.exclude_self == 0);
+    p.spacing = 0.7 * h;
+    p.passes = 1;
+    CHECK(tessel_smooth(&c, &with, &p, NULL, NULL) == TESSEL_OK);
+    p.exclude_self = 1;
+    CHECK(tessel_smooth(&c, &without, &p, NULL, NULL) == TESSEL_OK);
+    double z_out = without.xyz[3 * raised + 2] / h, z_in = with.xyz[3 * raised + 2] / h;
+    CHECK_MSG(fabs(z_out) < 0.01, "left out of its fit: still %.4f h above the plane", z_out);
+    CHECK_MSG(z_in > 0.03, "in its fit: %.4f h above the plane", z_in);
+    tessel_cloud_free(&with);
+    tessel_cloud_free(&without);
+    p.exclude_self = 2;
+    CHECK(tessel_smooth(&c, &with, &p, NULL, NULL) == TESSEL_ERR_INVALID_ARG);
+    tessel_cloud_free(&c);
+}
+
 /* Beyond the paper: the quadric over the robust plane. On a clean sphere
  * the plane operator pulls every point inward by about r^2 / 2R (r the
  * neighbourhood's radius); the projector's quadric follows the curvature
@@ -939,6 +970,7 @@ int main(void)
     test_pass_matches_projector();
     test_copies_beyond_k();
     test_quadric();
+    test_exclude_self();
     test_lattice_ties();
     test_later_passes();
     test_degenerate();
