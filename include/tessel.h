@@ -938,7 +938,7 @@ typedef struct tessel_smooth_params {
                                  noise is small or the surface curves
                                  within a few spacings, where the point
                                  itself pulls the fit back onto the
-                                 surface (docs/smooth.md, section E).
+                                 surface (docs/smooth.md, section F).
                                  0 (default): it enters its fit with the
                                  largest weight; the noisy pipeline's
                                  cluster sizes are calibrated with 0.
