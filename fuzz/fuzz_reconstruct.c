@@ -153,6 +153,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         p.refine.rounds = (opt >> 3) & 1 ? 2 : 0;
         if ((opt >> 4) & 1) /* the front in tiles and their seams */
             p.front.tile_points = 256;
+        if ((opt >> 5) & 1) /* each point (and its copies) out of its own fit */
+            p.smooth.exclude_self = 1;
         st = tessel_reconstruct_smooth(&c, &p, NULL, &m, NULL);
         if (opt & 0x80) {
             p.threads = 2;
