@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -85,6 +86,13 @@ void *tsl_calloc_array(size_t count, size_t size)
     if (size != 0 && count > SIZE_MAX / size)
         return NULL;
     return advise_huge(calloc(count ? count : 1, size ? size : 1), count * size);
+}
+
+double tsl_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 tessel_status tsl_grow(void **ptr, size_t *cap, size_t need, size_t size)

@@ -35,7 +35,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -49,13 +48,6 @@
 #define FP_BATCH 16384u
 /* Rows per parallel block (progress is reported between blocks). */
 #define FP_BLOCK_ROWS 64u
-
-static double fp_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 tessel_fixed_plane_params tessel_fixed_plane_params_default(void)
 {
@@ -2063,7 +2055,7 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
                                              const tessel_triangle_sink *sink,
                                              tessel_fixed_plane_stats *stats)
 {
-    double t_start = fp_now();
+    double t_start = tsl_seconds();
     tessel_fixed_plane_params p =
         params ? *params : tessel_fixed_plane_params_default();
     tessel_fixed_plane_stats st;
@@ -2218,7 +2210,7 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
         st.representatives = dx.reps;
         st.dexels_filled = dx.filled;
     }
-    st.seconds_dexels = fp_now() - t_start;
+    st.seconds_dexels = tsl_seconds() - t_start;
     st.columns = x.w;
     st.rows = x.h;
     x.cw = x.w < 2 ? 0 : x.wrap_c ? x.w : x.w - 1;
@@ -2315,7 +2307,7 @@ tessel_status tessel_reconstruct_fixed_plane(const tessel_cloud *cloud,
     free(codes);
     free(dx.rep);
     free(dx.filled_slots);
-    st.seconds = fp_now() - t_start;
+    st.seconds = tsl_seconds() - t_start;
     if (stats)
         *stats = st;
     return status;

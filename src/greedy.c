@@ -30,7 +30,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 static void frame_axes(gp_frame *f, int axis_plane)
 {
@@ -1150,13 +1149,6 @@ tessel_greedy_params tessel_greedy_params_default(void)
     return p;
 }
 
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* One pass of the front over the cloud (sections 3-4) with checked
  * params; progress under `stage`. */
 tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
@@ -1219,7 +1211,7 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
                                         const tessel_triangle_sink *sink,
                                         tessel_recon_summary *summary)
 {
-    double t0 = now_seconds();
+    double t0 = tsl_seconds();
     if (summary)
         memset(summary, 0, sizeof *summary);
     tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
@@ -1249,7 +1241,7 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
         s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, &sum);
     if (s != TESSEL_OK)
         return s;
-    sum.seconds = now_seconds() - t0;
+    sum.seconds = tsl_seconds() - t0;
     if (summary)
         *summary = sum;
     return TESSEL_OK;

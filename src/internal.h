@@ -49,6 +49,8 @@ tessel_status tsl_grow(void **ptr, size_t *cap, size_t need, size_t size);
  * large blocks get the huge-page advice of tsl_alloc_array. Returns
  * TESSEL_ERR_NOMEM on failure (*ptr unchanged). */
 tessel_status tsl_resize(void **ptr, size_t old_bytes, size_t new_bytes);
+/* Monotonic wall-clock seconds, for the stage times of the stats. */
+double tsl_seconds(void);
 
 /* Progress helper: calls the callback if set; returns TESSEL_ERR_CANCELLED
  * when it asks to stop. */

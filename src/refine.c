@@ -413,20 +413,6 @@ static tessel_status check_news(rf *r, const uint32_t *news, int count,
 /* Storage                                                                   */
 /* ------------------------------------------------------------------------ */
 
-/* Grows *p (holding *cap elements of size bytes) to hold need, doubling. */
-static tessel_status grow(void **p, size_t *cap, size_t need, size_t size)
-{
-    if (need <= *cap)
-        return TESSEL_OK;
-    size_t n = *cap * 2 > need ? *cap * 2 : need, bytes;
-    if (!tsl_mul_size(n, size, &bytes))
-        return TESSEL_ERR_NOMEM;
-    tessel_status st = tsl_resize(p, *cap * size, bytes);
-    if (st == TESSEL_OK)
-        *cap = n;
-    return st;
-}
-
 static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
 {
     /* Vertex ids and half-edge ids 3 t + i stay below TESSEL_NONE. */
@@ -434,8 +420,8 @@ static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
         return TESSEL_ERR_LIMIT;
     if (r->nv + more_v > r->cap_v) {
         size_t c1 = r->cap_v, c2 = r->cap_v;
-        if (grow((void **)&r->xyz_own, &c1, r->nv + more_v, 3 * sizeof *r->xyz_own) ||
-            (r->rgb && grow((void **)&r->rgb, &c2, r->nv + more_v, 3)))
+        if (tsl_grow((void **)&r->xyz_own, &c1, r->nv + more_v, 3 * sizeof *r->xyz_own) ||
+            (r->rgb && tsl_grow((void **)&r->rgb, &c2, r->nv + more_v, 3)))
             return TESSEL_ERR_NOMEM;
         r->xyz = r->xyz_own;
         r->cap_v = r->rgb && c2 < c1 ? c2 : c1;
@@ -443,9 +429,9 @@ static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
     if (r->nt + more_t > r->cap_t) {
         size_t c1 = r->cap_t, c2 = r->cap_t;
         size_t c3 = r->cap_t;
-        if (grow((void **)&r->tri, &c1, r->nt + more_t, 3 * sizeof *r->tri) ||
-            grow((void **)&r->twin, &c2, r->nt + more_t, 3 * sizeof *r->twin) ||
-            grow((void **)&r->box, &c3, r->nt + more_t, 6 * sizeof *r->box))
+        if (tsl_grow((void **)&r->tri, &c1, r->nt + more_t, 3 * sizeof *r->tri) ||
+            tsl_grow((void **)&r->twin, &c2, r->nt + more_t, 3 * sizeof *r->twin) ||
+            tsl_grow((void **)&r->box, &c3, r->nt + more_t, 6 * sizeof *r->box))
             return TESSEL_ERR_NOMEM;
         r->cap_t = c1 < c2 ? c1 : c2;
         r->cap_t = c3 < r->cap_t ? c3 : r->cap_t;

@@ -39,7 +39,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -1505,13 +1504,6 @@ static void to_grid_order(tessel_cloud *res, const tessel_cloud *cloud, const ts
     }
 }
 
-static double seconds_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
                             const tessel_smooth_params *params,
                             const tessel_callbacks *callbacks, tessel_smooth_stats *stats)
@@ -1552,7 +1544,7 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
         cell = fmin(cell, 3.0 * p.sigma_w * h);
     st = tsl_grid_build(&g, cloud->xyz, n, cell, threads);
     if (st == TESSEL_OK && !(h > 0.0)) {
-        double t0 = seconds_now();
+        double t0 = tsl_seconds();
         st = tsl_grid_spacing(&g, cloud->xyz, n, threads, &h);
         if (st == TESSEL_OK && !isfinite(h))
             st = TESSEL_ERR_TOO_FEW_POINTS; /* no scale to smooth at */
@@ -1560,7 +1552,7 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
             tsl_grid_free(&g);
             st = tsl_grid_build(&g, cloud->xyz, n, 3.0 * p.sigma_w * h, threads);
         }
-        *seconds_spacing = seconds_now() - t0;
+        *seconds_spacing = tsl_seconds() - t0;
     }
     if (st != TESSEL_OK) {
         tsl_grid_free(&g);

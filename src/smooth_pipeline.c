@@ -24,7 +24,6 @@
 
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 /* Automatic cluster diameter (multiples of h): this many times the RMS
  * displacement of the smoothing (in h), within [MIN, MAX]. Measured on the
@@ -64,13 +63,6 @@ tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
     p.auto_cluster_size = 1;
     p.threads = 0;
     return p;
-}
-
-static double now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 /* Drops vertices no triangle uses (keeping order). */
@@ -477,7 +469,7 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     tessel_cloud smoothed = {0}, reps = {0};
     tessel_projector *projector = NULL;
     tessel_status st;
-    double t_all = now(), t = t_all;
+    double t_all = tsl_seconds(), t = t_all;
 
     /* h once for every stage: the smoothing measures it (on the grid it
      * builds for its neighbours) unless it is given. */
@@ -491,7 +483,7 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
         p.simplify.cluster.spacing = h;
     if (!(p.simplify.projection.spacing > 0.0))
         p.simplify.projection.spacing = h;
-    s.seconds_smooth = now() - t - s.seconds_spacing;
+    s.seconds_smooth = tsl_seconds() - t - s.seconds_spacing;
 
     /* Representatives far enough apart for the noise left (see the
      * params): on clean input small clusters follow thin parts; on noisy
@@ -506,7 +498,7 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     }
     s.cluster_diameter = p.simplify.cluster.max_diameter;
 
-    t = now();
+    t = tsl_seconds();
     {
         /* One kd-tree over the smoothed cloud serves the representatives'
          * projector here, the refinement's and the hole step's. */
@@ -526,7 +518,7 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
         if (st)
             goto fail;
     }
-    s.seconds_simplify = now() - t;
+    s.seconds_simplify = tsl_seconds() - t;
     s.representatives = reps.count;
     if (reps.count < 3) {
         st = TESSEL_ERR_TOO_FEW_POINTS;
@@ -542,7 +534,7 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
         reps.normals = NULL;
     }
 
-    t = now();
+    t = tsl_seconds();
     st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, mesh, &s.front);
     /* Holes left: the front again around them with extra representatives,
      * the rest of the mesh kept as it is (every result is valid). */
@@ -564,21 +556,21 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
         goto fail;
     if ((st = compact(mesh)))
         goto fail;
-    s.seconds_front = now() - t;
+    s.seconds_front = tsl_seconds() - t;
 
-    t = now();
+    t = tsl_seconds();
     if (p.refine.rounds > 0 &&
         (st = tessel_refine(mesh, &smoothed, projector, &p.refine, callbacks, &s.refine)))
         goto fail;
     if ((st = star_normals(mesh)))
         goto fail;
-    s.seconds_refine = now() - t;
+    s.seconds_refine = tsl_seconds() - t;
 
     s.vertices = mesh->vertex_count;
     s.triangles = mesh->triangle_count;
     /* Refinement splits border edges too. */
     s.border_edges = p.refine.rounds > 0 ? s.refine.border_edges : s.front.border_edges;
-    s.seconds_total = now() - t_all;
+    s.seconds_total = tsl_seconds() - t_all;
     tessel_projector_destroy(projector);
     tessel_cloud_free(&smoothed);
     tessel_cloud_free(&reps);

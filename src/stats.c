@@ -488,13 +488,11 @@ static tessel_status grid_first_occurrences(const tsl_grid *g, int threads, uint
 {
     long long ncell = (long long)g->ncell;
     const float *xyz = g->sxyz;
-    size_t nbig = 0, big_len = 0;
+    size_t big_len = 0; /* the most points in a crowded cell */
     for (size_t c = 0; c < g->ncell; c++) {
         size_t len = g->start[c + 1] - g->start[c];
-        if (len > FIRST_SCAN_MAX) {
-            nbig++;
-            big_len = len > big_len ? len : big_len;
-        }
+        if (len > FIRST_SCAN_MAX && len > big_len)
+            big_len = len;
     }
     (void)threads;
 #ifdef _OPENMP
@@ -514,7 +512,7 @@ static tessel_status grid_first_occurrences(const tsl_grid *g, int threads, uint
             is_first[g->perm[t]] = first;
         }
     }
-    if (nbig) {
+    if (big_len) {
         /* Crowded cells (many copies of one point): sorted, serially. */
         run_point *big = tsl_alloc_array(big_len, sizeof *big);
         if (!big)
