@@ -41,6 +41,7 @@
 #include <float.h>
 #include <omp.h>
 #include <stdatomic.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -263,9 +264,10 @@ static inline size_t grid_slot(const tsl_trigrid *g, uint64_t key)
     return (size_t)(h ^ (h >> 29)) & (g->slots - 1);
 }
 
-static tessel_status grid_rehash(tsl_trigrid *g)
+/* Moves the cells into a table of the given number of slots (a power of
+ * two, more than the cells used). */
+static tessel_status grid_rehash(tsl_trigrid *g, size_t slots)
 {
-    size_t slots = g->slots * 2;
     uint64_t *keys = tsl_calloc_array(slots, sizeof *keys);
     uint32_t *heads = tsl_alloc_array(slots, sizeof *heads);
     if (!keys || !heads) {
@@ -293,6 +295,23 @@ static tessel_status grid_rehash(tsl_trigrid *g)
     return TESSEL_OK;
 }
 
+tessel_status tsl_trigrid_reserve(tsl_trigrid *g, size_t entries, size_t cells)
+{
+    size_t slots = g->slots;
+    while ((cells + 1) * 2 > slots && slots <= SIZE_MAX / 4)
+        slots *= 2;
+    if (slots > g->slots && grid_rehash(g, slots))
+        return TESSEL_ERR_NOMEM;
+    if (entries > g->ent_cap) {
+        size_t cap = g->ent_cap, cap2 = g->ent_cap;
+        if (tsl_grow((void **)&g->ent_tri, &cap, entries, sizeof *g->ent_tri) ||
+            tsl_grow((void **)&g->ent_next, &cap2, entries, sizeof *g->ent_next))
+            return TESSEL_ERR_NOMEM;
+        g->ent_cap = cap < cap2 ? cap : cap2;
+    }
+    return TESSEL_OK;
+}
+
 tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3],
                                  const double hi[3])
 {
@@ -306,7 +325,7 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
     for (int32_t x = c0[0]; x <= c1[0]; x++)
         for (int32_t y = c0[1]; y <= c1[1]; y++)
             for (int32_t z = c0[2]; z <= c1[2]; z++) {
-                if ((g->used + 1) * 2 > g->slots && grid_rehash(g))
+                if ((g->used + 1) * 2 > g->slots && grid_rehash(g, 2 * g->slots))
                     return TESSEL_ERR_NOMEM;
                 if (g->entries + 1 > g->ent_cap) {
                     size_t cap = g->ent_cap;

@@ -145,6 +145,9 @@ typedef struct tsl_trigrid {
  * triangles (used to keep cell coordinates in range). */
 tessel_status tsl_trigrid_init(tsl_trigrid *g, const double lo[3], const double hi[3],
                                double cell);
+/* Room for this many entries (triangle-cell pairs) and cells, so that
+ * inserting them neither copies the entries nor rehashes the cells. */
+tessel_status tsl_trigrid_reserve(tsl_trigrid *g, size_t entries, size_t cells);
 tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3],
                                  const double hi[3]);
 /* Triangle ids whose cells meet the box [lo, hi], each once, into
