@@ -83,25 +83,45 @@ static size_t cell_id(const ray_grid *g, int x, int y, int z)
 }
 
 /* The box is the triangles': points no triangle uses (an outlier far
- * away) would only stretch the grid. */
-static tessel_status grid_build(ray_grid *g, const float *xyz, const uint32_t *tri, size_t nt)
+ * away) would only stretch the grid. Threaded; the items of a cell come
+ * in any order, which changes no count. */
+static tessel_status grid_build(ray_grid *g, const float *xyz, const uint32_t *tri, size_t nt,
+                                int threads)
 {
     double hi[3], len = 0.0;
     for (int k = 0; k < 3; k++) {
         g->lo[k] = INFINITY;
         hi[k] = -INFINITY;
     }
-    for (size_t t = 0; t < nt; t++) {
+    ptrdiff_t n = (ptrdiff_t)nt;
+    /* The edge lengths summed in order, so that the cell is the same for
+     * any thread count. */
+    double *edge = tsl_alloc_array(nt ? nt : 1, sizeof *edge);
+    if (!edge)
+        return TESSEL_ERR_NOMEM;
+    double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY;
+    double hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads)) \
+    reduction(min : lo0, lo1, lo2) reduction(max : hi0, hi1, hi2)
+    for (ptrdiff_t t = 0; t < n; t++) {
         double p[3][3], d[3];
         tri_points(xyz, tri + 3 * t, p);
-        for (int i = 0; i < 3; i++)
-            for (int k = 0; k < 3; k++) {
-                g->lo[k] = fmin(g->lo[k], p[i][k]);
-                hi[k] = fmax(hi[k], p[i][k]);
-            }
+        for (int i = 0; i < 3; i++) {
+            lo0 = fmin(lo0, p[i][0]);
+            lo1 = fmin(lo1, p[i][1]);
+            lo2 = fmin(lo2, p[i][2]);
+            hi0 = fmax(hi0, p[i][0]);
+            hi1 = fmax(hi1, p[i][1]);
+            hi2 = fmax(hi2, p[i][2]);
+        }
         tsl_sub(p[1], p[0], d);
-        len += tsl_norm(d);
+        edge[t] = tsl_norm(d);
     }
+    for (size_t t = 0; t < nt; t++)
+        len += edge[t];
+    free(edge);
+    g->lo[0] = lo0, g->lo[1] = lo1, g->lo[2] = lo2;
+    hi[0] = hi0, hi[1] = hi1, hi[2] = hi2;
     /* One mean edge a cell. A ray's cost is its triangle tests, and most of
      * them are in the first cells, among the triangles around its origin;
      * smaller cells hold fewer of them, for more (cheap) empty cells on
@@ -135,7 +155,8 @@ static tessel_status grid_build(ray_grid *g, const float *xyz, const uint32_t *t
         return TESSEL_ERR_NOMEM;
     size_t entries = 0;
     for (int pass = 0; pass < 2; pass++) {
-        for (size_t t = 0; t < nt; t++) {
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+        for (ptrdiff_t t = 0; t < n; t++) {
             double p[3][3];
             int a[3], b[3];
             tri_points(xyz, tri + 3 * t, p);
@@ -143,11 +164,15 @@ static tessel_status grid_build(ray_grid *g, const float *xyz, const uint32_t *t
             for (int z = a[2]; z <= b[2]; z++)
                 for (int y = a[1]; y <= b[1]; y++)
                     for (int x = a[0]; x <= b[0]; x++) {
-                        size_t c = cell_id(g, x, y, z);
-                        if (pass == 0)
+                        size_t c = cell_id(g, x, y, z), at;
+                        if (pass == 0) {
+#pragma omp atomic
                             g->start[c + 1]++;
-                        else
-                            g->items[g->start[c]++] = (uint32_t)t;
+                            continue;
+                        }
+#pragma omp atomic capture
+                        at = g->start[c]++;
+                        g->items[at] = (uint32_t)t;
                     }
         }
         if (pass == 0) {
@@ -258,27 +283,55 @@ static uint32_t mix(uint32_t x)
 }
 
 /* nb[3 t + i]: the triangle across t's edge i (from its vertex i to
- * i + 1), NONE on a border; found among the triangles at vertex i. */
-static tessel_status neighbours(const uint32_t *tri, size_t nt, size_t nv, uint32_t *nb)
+ * i + 1), NONE on a border: the first triangle other than t, in the
+ * order of a's corners, that has b too. Vertex by vertex (each writes only
+ * the edges leaving it), from its corners' other two vertices, so that a
+ * triangle is read once per vertex instead of once per edge there. */
+static tessel_status neighbours(const uint32_t *tri, size_t nt, size_t nv, int threads,
+                                uint32_t *nb)
 {
     uint32_t *first, *corner;
     if (tsl_vertex_corners(tri, nt, nv, &first, &corner))
         return TESSEL_ERR_NOMEM;
-    for (size_t t = 0; t < nt; t++)
-        for (int i = 0; i < 3; i++) {
-            uint32_t a = tri[3 * t + (size_t)i], b = tri[3 * t + (size_t)(i + 1) % 3];
-            uint32_t found = NONE;
-            for (uint32_t e = first[a]; e < first[a + 1] && found == NONE; e++) {
-                uint32_t u = corner[e] / 3;
-                const uint32_t *w = tri + 3 * (size_t)u;
-                if (u != t && (w[0] == b || w[1] == b || w[2] == b))
-                    found = u;
+    ptrdiff_t count = (ptrdiff_t)nv;
+    bool nomem = false;
+#pragma omp parallel num_threads(tsl_threads(threads)) reduction(|| : nomem)
+    {
+        size_t cap = 0;
+        uint32_t *other = NULL; /* per corner at a: its next and previous vertex */
+#pragma omp for schedule(dynamic, 1024)
+        for (ptrdiff_t a = 0; a < count; a++) {
+            uint32_t c0 = first[a], deg = first[a + 1] - c0;
+            if (nomem || deg == 0)
+                continue;
+            if (2 * (size_t)deg > cap) {
+                free(other);
+                cap = 2 * (size_t)deg;
+                if (!(other = tsl_alloc_array(cap, sizeof *other))) {
+                    nomem = true;
+                    cap = 0;
+                    continue;
+                }
             }
-            nb[3 * t + (size_t)i] = found;
+            for (uint32_t k = 0; k < deg; k++) {
+                uint32_t c = corner[c0 + k], t3 = c - c % 3;
+                other[2 * k] = tri[t3 + (c % 3 + 1) % 3];
+                other[2 * k + 1] = tri[t3 + (c % 3 + 2) % 3];
+            }
+            for (uint32_t k = 0; k < deg; k++) {
+                uint32_t c = corner[c0 + k], b = other[2 * k], found = NONE;
+                for (uint32_t j = 0; j < deg && found == NONE; j++)
+                    if (corner[c0 + j] / 3 != c / 3 &&
+                        (b == (uint32_t)a || other[2 * j] == b || other[2 * j + 1] == b))
+                        found = corner[c0 + j] / 3;
+                nb[c] = found;
+            }
         }
+        free(other);
+    }
     free(first);
     free(corner);
-    return TESSEL_OK;
+    return nomem ? TESSEL_ERR_NOMEM : TESSEL_OK;
 }
 
 /* Labels the connected sets of triangles t with in[t] (edge neighbours),
@@ -331,7 +384,7 @@ static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, con
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!nb || !label || !comp || !queue || !vote || !next || !in)
         goto done;
-    if ((st = neighbours(tri, nt, nv, nb)))
+    if ((st = neighbours(tri, nt, nv, threads, nb)))
         goto done;
     ptrdiff_t n = (ptrdiff_t)nt;
     memcpy(vote, raw, nt * sizeof *vote);
@@ -417,7 +470,7 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
         return TESSEL_ERR_LIMIT;
     ray_grid g = {0};
     float *raw = tsl_alloc_array(nt, sizeof *raw);
-    tessel_status st = raw ? grid_build(&g, xyz, tri, nt) : TESSEL_ERR_NOMEM;
+    tessel_status st = raw ? grid_build(&g, xyz, tri, nt, threads) : TESSEL_ERR_NOMEM;
     if (st == TESSEL_OK) {
         ptrdiff_t n = (ptrdiff_t)nt;
         uint32_t stride = (uint32_t)((nt + RAY_BUDGET - 1) / RAY_BUDGET);

@@ -532,67 +532,77 @@ static bool edge_exists(const rf *r, uint32_t h, uint32_t b)
  * y is x. INVALID_ARG for a triangle with a repeated or bad vertex, an
  * edge run twice the same way or in more than two triangles, and a vertex
  * with more than one fan (edge_exists needs one). */
-static tessel_status build_twins(rf *r)
+static tessel_status build_twins(rf *r, int threads)
 {
     if (!corners_valid(r))
         return TESSEL_ERR_INVALID_ARG;
-    uint32_t *start, *corner, *out = NULL, *in = NULL, *next = NULL;
+    uint32_t *start, *corner;
     tessel_status st = tsl_vertex_corners(r->tri, r->nt, r->nv, &start, &corner);
     if (st)
         return st;
     uint32_t most = 0;
     for (size_t v = 0; v < r->nv; v++)
         most = start[v + 1] - start[v] > most ? start[v + 1] - start[v] : most;
-    out = tsl_alloc_array(most, sizeof *out);
-    in = tsl_alloc_array(most, sizeof *in);
-    next = tsl_alloc_array(most, sizeof *next);
-    if (!out || !in || !next)
-        st = TESSEL_ERR_NOMEM;
-    for (size_t v = 0; v < r->nv && !st; v++) {
-        const uint32_t *c = corner + start[v];
-        uint32_t n = start[v + 1] - start[v];
-        for (uint32_t k = 0; k < n; k++) {
-            out[k] = he_to(r, c[k]);
-            in[k] = he_from(r, he_prev(c[k]));
-        }
-        /* next[k]: the corner across the edge v -> out[k], NONE on the
-         * border. */
-        for (uint32_t k = 0; k < n; k++) {
-            next[k] = NONE;
-            for (uint32_t j = 0; j < n; j++) {
-                if (j != k && out[j] == out[k])
-                    st = TESSEL_ERR_INVALID_ARG;
-                if (in[j] == out[k]) {
-                    if (next[k] != NONE)
-                        st = TESSEL_ERR_INVALID_ARG;
-                    next[k] = j;
-                }
+    ptrdiff_t nv = (ptrdiff_t)r->nv;
+    bool nomem = false, invalid = false;
+    /* Each vertex writes the twins of its own corners only. */
+#pragma omp parallel num_threads(tsl_threads(threads)) reduction(|| : nomem, invalid)
+    {
+        uint32_t *out = tsl_alloc_array(most, sizeof *out);
+        uint32_t *in = tsl_alloc_array(most, sizeof *in);
+        uint32_t *next = tsl_alloc_array(most, sizeof *next);
+        if (!out || !in || !next)
+            nomem = true;
+#pragma omp for schedule(dynamic, 1024)
+        for (ptrdiff_t v = 0; v < nv; v++) {
+            if (nomem || invalid)
+                continue;
+            const uint32_t *c = corner + start[v];
+            uint32_t n = start[v + 1] - start[v];
+            for (uint32_t k = 0; k < n; k++) {
+                out[k] = he_to(r, c[k]);
+                in[k] = he_from(r, he_prev(c[k]));
             }
-            r->twin[c[k]] = next[k] == NONE ? NONE : he_prev(c[next[k]]);
+            /* next[k]: the corner across the edge v -> out[k], NONE on the
+             * border. */
+            for (uint32_t k = 0; k < n; k++) {
+                next[k] = NONE;
+                for (uint32_t j = 0; j < n; j++) {
+                    if (j != k && out[j] == out[k])
+                        invalid = true;
+                    if (in[j] == out[k]) {
+                        if (next[k] != NONE)
+                            invalid = true;
+                        next[k] = j;
+                    }
+                }
+                r->twin[c[k]] = next[k] == NONE ? NONE : he_prev(c[next[k]]);
+            }
+            /* One fan: from the corner no other corner leads to (a border),
+             * or from any corner when the fan is closed, the walk meets all
+             * n (in now flags the corners some corner leads to). */
+            for (uint32_t k = 0; k < n; k++)
+                in[k] = 0;
+            for (uint32_t k = 0; k < n; k++)
+                if (next[k] != NONE)
+                    in[next[k]] = 1;
+            uint32_t first = 0, seen = 0;
+            for (uint32_t k = 0; k < n; k++)
+                if (!in[k])
+                    first = k;
+            for (uint32_t k = first; k != NONE && seen <= n;
+                 k = next[k] == first ? NONE : next[k])
+                seen++;
+            if (n && seen != n)
+                invalid = true;
         }
-        /* One fan: from the corner no other corner leads to (a border), or
-         * from any corner when the fan is closed, the walk meets all n (in
-         * now flags the corners some corner leads to). */
-        for (uint32_t k = 0; k < n; k++)
-            in[k] = 0;
-        for (uint32_t k = 0; k < n; k++)
-            if (next[k] != NONE)
-                in[next[k]] = 1;
-        uint32_t first = 0, seen = 0;
-        for (uint32_t k = 0; k < n; k++)
-            if (!in[k])
-                first = k;
-        for (uint32_t k = first; k != NONE && seen <= n; k = next[k] == first ? NONE : next[k])
-            seen++;
-        if (n && seen != n)
-            st = TESSEL_ERR_INVALID_ARG;
+        free(out);
+        free(in);
+        free(next);
     }
-    free(out);
-    free(in);
-    free(next);
     free(start);
     free(corner);
-    return st;
+    return nomem ? TESSEL_ERR_NOMEM : invalid ? TESSEL_ERR_INVALID_ARG : TESSEL_OK;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -1335,7 +1345,7 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     r.twin = tsl_alloc_array(3 * nt, sizeof *r.twin);
     r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (r.twin && r.box && !(st = build_twins(&r)) && !(st = build_grid(&r)))
+    if (r.twin && r.box && !(st = build_twins(&r, 0)) && !(st = build_grid(&r)))
         st = flip_passes(&r);
     *flips = r.stats.flips;
     free(r.twin);
