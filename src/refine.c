@@ -1326,6 +1326,46 @@ done:
     return st;
 }
 
+/* Numbers the vertices tri uses 0, 1, ... in order of first use: tri is
+ * rewritten, (*local)[3 i ..] receives the position of the vertex now
+ * numbered i, (*back)[i] its old number; *used of them. */
+static tessel_status renumber(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
+                              uint32_t **back, float **local, size_t *used)
+{
+    *back = NULL;
+    *local = NULL;
+    for (size_t i = 0; i < 3 * nt; i++)
+        if (tri[i] >= nv)
+            return TESSEL_ERR_INVALID_ARG;
+    uint32_t *fwd = tsl_alloc_array(nv ? nv : 1, sizeof *fwd);
+    *back = tsl_alloc_array(nv ? nv : 1, sizeof **back);
+    *local = tsl_alloc_array(3 * (nv ? nv : 1), sizeof **local);
+    if (!fwd || !*back || !*local) {
+        free(fwd);
+        free(*back);
+        free(*local);
+        *back = NULL;
+        *local = NULL;
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t v = 0; v < nv; v++)
+        fwd[v] = NONE;
+    uint32_t n = 0;
+    for (size_t i = 0; i < 3 * nt; i++) {
+        uint32_t v = tri[i];
+        if (fwd[v] == NONE) {
+            fwd[v] = n;
+            (*back)[n] = v;
+            memcpy(*local + 3 * (size_t)n, xyz + 3 * (size_t)v, 3 * sizeof **local);
+            n++;
+        }
+        tri[i] = fwd[v];
+    }
+    free(fwd);
+    *used = n;
+    return TESSEL_OK;
+}
+
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
                                  size_t *flips)
 {
@@ -1334,19 +1374,36 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
         return TESSEL_ERR_LIMIT;
     if (nt == 0)
         return TESSEL_OK;
+    /* The used vertices in order of first use, in a copy: the triangles
+     * come in the order the front made them, close together, while the
+     * points may come in any order (on a Fibonacci sphere each point's
+     * neighbours are far away in the file). Flipping reads the vertices of
+     * every triangle around each pair; this made the twins and the grid
+     * 0.55 -> 0.37 s on 2,000,000 triangles. Flips keep the vertices, and
+     * the ids go back at the end. */
+    uint32_t *back = NULL;
+    float *local = NULL;
+    size_t used;
+    tessel_status st = renumber(xyz, nv, tri, nt, &back, &local, &used);
+    if (st)
+        return st;
     rf r;
     memset(&r, 0, sizeof r);
-    r.xyz = xyz;
-    r.nv = nv;
+    r.xyz = local;
+    r.nv = used;
     r.tri = tri;
     r.nt = r.cap_t = nt;
     r.cos_turn = cos(MAX_TURN_DEG * acos(-1.0) / 180.0);
     r.delaunay = true;
     r.twin = tsl_alloc_array(3 * nt, sizeof *r.twin);
     r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
-    tessel_status st = TESSEL_ERR_NOMEM;
+    st = TESSEL_ERR_NOMEM;
     if (r.twin && r.box && !(st = build_twins(&r, 0)) && !(st = build_grid(&r)))
         st = flip_passes(&r);
+    for (size_t i = 0; i < 3 * nt; i++)
+        tri[i] = back[tri[i]];
+    free(back);
+    free(local);
     *flips = r.stats.flips;
     free(r.twin);
     free(r.box);
