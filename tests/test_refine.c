@@ -557,6 +557,20 @@ static void test_flip_diagonals(void)
     CHECK(has13[0] && has13[1]);
     /* Flipping again changes nothing: the pair is Delaunay now. */
     CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK && flips == 0);
+    /* The same rhombus with its points stored in another order (the flips
+     * number the vertices afresh inside and must give the ids back). */
+    const float shuffled[] = {100, 100, 100, 1, 1, 0, 3, 1, 0, 0, 0, 0, 2, 0, 0};
+    uint32_t st[6] = {3, 4, 2, 3, 2, 1}; /* 0 -> 3, 1 -> 4, 2 -> 2, 3 -> 1 */
+    CHECK(tsl_flip_diagonals(shuffled, 5, st, 2, &flips) == TESSEL_OK && flips == 1);
+    for (int t = 0; t < 2; t++) {
+        bool has41 = false;
+        for (int i = 0; i < 3; i++) {
+            uint32_t a = st[3 * t + i], b = st[3 * t + (i + 1) % 3];
+            has41 |= (a == 4 && b == 1) || (a == 1 && b == 4);
+            CHECK(a == 1 || a == 2 || a == 3 || a == 4);
+        }
+        CHECK(has41);
+    }
     /* Lifted at 3, the pair bounds a thin tetrahedron whose other two faces
      * the flip would make; a triangle rising from inside it (touching
      * neither old triangle) forbids the flip, which happens without it. */
@@ -574,6 +588,7 @@ static void test_flip_diagonals(void)
     uint32_t same_way[6] = {0, 1, 2, 0, 1, 3};
     uint32_t bad[3] = {0, 1, 6};
     CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(memcmp(bowtie, (uint32_t[]){0, 1, 2, 0, 3, 4}, sizeof bowtie) == 0);
     CHECK(tsl_flip_diagonals(six, 6, three, 3, &flips) == TESSEL_ERR_INVALID_ARG);
     CHECK(tsl_flip_diagonals(six, 6, same_way, 2, &flips) == TESSEL_ERR_INVALID_ARG);
     CHECK(tsl_flip_diagonals(six, 6, bad, 1, &flips) == TESSEL_ERR_INVALID_ARG);
