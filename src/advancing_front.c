@@ -396,6 +396,102 @@ tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double
     return TESSEL_OK;
 }
 
+bool tsl_trigrid_covers(const tsl_trigrid *g, const double olo[3], const double ohi[3],
+                        const double lo[3], const double hi[3])
+{
+    for (int i = 0; i < 3; i++)
+        if (grid_coord(g, lo[i], i) < grid_coord(g, olo[i], i) ||
+            grid_coord(g, hi[i], i) > grid_coord(g, ohi[i], i))
+            return false;
+    return true;
+}
+
+tessel_status tsl_trigrid_init_like(tsl_trigrid *g, const tsl_trigrid *like)
+{
+    memset(g, 0, sizeof *g);
+    memcpy(g->origin, like->origin, sizeof g->origin);
+    g->inv_cell = like->inv_cell;
+    g->slots = 1024;
+    g->keys = tsl_calloc_array(g->slots, sizeof *g->keys);
+    g->heads = tsl_alloc_array(g->slots, sizeof *g->heads);
+    if (!g->keys || !g->heads) {
+        tsl_trigrid_free(g);
+        return TESSEL_ERR_NOMEM;
+    }
+    return TESSEL_OK;
+}
+
+void tsl_trigrid_clear(tsl_trigrid *g)
+{
+    if (g->used)
+        memset(g->keys, 0, g->slots * sizeof *g->keys);
+    g->used = 0;
+    g->entries = 0;
+}
+
+tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h, size_t id_end)
+{
+    h->count = 0;
+    if (id_end > h->stamp_cap) {
+        /* Doubling: the refinement's splits add ids one by one. */
+        size_t cap = id_end > 2 * h->stamp_cap ? id_end : 2 * h->stamp_cap;
+        uint32_t *stamp = tsl_calloc_array(cap, sizeof *stamp);
+        uint32_t *found = tsl_alloc_array(cap, sizeof *found);
+        if (!stamp || !found) {
+            free(stamp);
+            free(found);
+            return TESSEL_ERR_NOMEM;
+        }
+        free(h->stamp);
+        free(h->found);
+        h->stamp = stamp;
+        h->found = found;
+        h->stamp_cap = cap;
+        h->stamp_now = 0;
+    }
+    if (++h->stamp_now == 0) {
+        memset(h->stamp, 0, h->stamp_cap * sizeof *h->stamp);
+        h->stamp_now = 1;
+    }
+    return TESSEL_OK;
+}
+
+void tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
+                         tsl_trigrid_hits *h)
+{
+    if (!g->used)
+        return;
+    int32_t c0[3], c1[3];
+    for (int i = 0; i < 3; i++) {
+        c0[i] = grid_coord(g, lo[i], i);
+        c1[i] = grid_coord(g, hi[i], i);
+    }
+    for (int32_t x = c0[0]; x <= c1[0]; x++)
+        for (int32_t y = c0[1]; y <= c1[1]; y++)
+            for (int32_t z = c0[2]; z <= c1[2]; z++) {
+                uint64_t key = grid_key(x, y, z);
+                size_t s = grid_slot(g, key);
+                while (g->keys[s] && g->keys[s] != key)
+                    s = (s + 1) & (g->slots - 1);
+                if (!g->keys[s])
+                    continue;
+                for (uint32_t ent = g->heads[s]; ent != NONE; ent = g->ent_next[ent]) {
+                    uint32_t t = g->ent_tri[ent];
+                    if (t >= h->stamp_cap || h->stamp[t] == h->stamp_now)
+                        continue;
+                    h->stamp[t] = h->stamp_now;
+                    h->found[h->count++] = t;
+                }
+            }
+}
+
+void tsl_trigrid_hits_free(tsl_trigrid_hits *h)
+{
+    free(h->stamp);
+    free(h->found);
+    memset(h, 0, sizeof *h);
+}
+
 /* Plain minimum / maximum of finite numbers (fmin/fmax handle NaN and are
  * function calls). */
 static inline double dmin(double a, double b) { return a < b ? a : b; }

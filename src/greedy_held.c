@@ -113,7 +113,7 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
     if (s == TESSEL_OK && params->flip) {
         s = tsl_progress(callbacks, "diagonal flips", 0.0);
         if (s == TESSEL_OK)
-            s = tsl_flip_diagonals(cloud->xyz, cloud->count, all.tris, all.count,
+            s = tsl_flip_diagonals(cloud->xyz, cloud->count, all.tris, all.count, 0,
                                    &summary->flips);
         if (s == TESSEL_OK)
             s = tsl_progress(callbacks, "diagonal flips", 1.0);

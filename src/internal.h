@@ -154,6 +154,30 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
  * g->found[0 .. g->found_count). Not thread-safe (scratch in g). */
 tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3]);
 void tsl_trigrid_free(tsl_trigrid *g);
+/* Whether the cells of box [lo, hi] are among those of [olo, ohi] (a
+ * triangle listed for the latter needs no listing for the former). */
+bool tsl_trigrid_covers(const tsl_trigrid *g, const double olo[3], const double ohi[3],
+                        const double lo[3], const double hi[3]);
+/* An empty grid with the cells of like (same origin and cell). */
+tessel_status tsl_trigrid_init_like(tsl_trigrid *g, const tsl_trigrid *like);
+/* Empties g, keeping its memory. */
+void tsl_trigrid_clear(tsl_trigrid *g);
+/* A query's result with its own scratch, so that several threads can
+ * query one grid at once (tsl_trigrid_query keeps its scratch in the grid):
+ * tsl_trigrid_hits_begin starts a result for ids below id_end, and each
+ * tsl_trigrid_collect adds the ids listed in the cells of g that meet
+ * [lo, hi] (g only read), each id once per result. */
+typedef struct tsl_trigrid_hits {
+    uint32_t *stamp;
+    size_t stamp_cap;
+    uint32_t stamp_now;
+    uint32_t *found;
+    size_t count;
+} tsl_trigrid_hits;
+tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h, size_t id_end);
+void tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
+                         tsl_trigrid_hits *h);
+void tsl_trigrid_hits_free(tsl_trigrid_hits *h);
 
 /* The corners of each vertex: corner[start[v] .. start[v + 1]) are the
  * corners i (triangle i / 3, position i % 3) of tri[0 .. 3 nt) at vertex
@@ -187,9 +211,10 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
  * normal and neither meets the mesh beyond shared vertices and edges
  * (exact). tri (nt triangles over the points xyz, nv of them) must be
  * manifold and consistently oriented; the triangles keep their slots.
+ * threads: 0 = OpenMP default; the result is the same for any count.
  * *flips: the diagonals flipped. */
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
-                                 size_t *flips);
+                                 int threads, size_t *flips);
 
 /* Removes the triangles (tri[3 i ..], *count of them, consistently
  * oriented, over n vertices) at every vertex with more than one fan, until

@@ -22,6 +22,7 @@
  * of self-intersections. */
 #include "internal.h"
 
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -75,7 +76,31 @@ typedef struct rf {
     edge_map fit_of;
     float *fit_sum;
     tessel_refine_stats stats;
+    double lo[3], hi[3]; /* the triangles' box when the grid was built */
+    struct worker *serial; /* the checks and flips outside parallel phases */
 } rf;
+
+/* What one thread checks and flips with. Serially (splits, and the flips
+ * of the serial tail) the checks query the mesh's grid, and a flip updates
+ * the grid and the edge map at once. In a parallel phase of the flips (see
+ * flip_passes) those two are only read: the triangles a flip changes go
+ * into the thread's overlay grid, which the later checks of its block
+ * query too, and the flip into a log that is applied after the phase. */
+typedef struct worker {
+    tsl_trigrid_hits hits;
+    bool parallel;
+    tsl_trigrid overlay;
+    uint32_t *log; /* per flip: T1, T2, u, v, a, b */
+    size_t nlog, cap_log;
+    uint32_t *seg; /* per block done: its key and the end of its part of log */
+    size_t nseg, cap_seg;
+    uint32_t *next; /* half-edges to look at in the next pass */
+    size_t nnext, cap_next;
+    uint32_t *tail; /* pairs that left their block, for the pass's tail */
+    size_t ntail, cap_tail;
+    size_t flips, invalid;
+    tessel_status status;
+} worker;
 
 static inline uint64_t edge_key(uint32_t a, uint32_t b)
 {
@@ -241,16 +266,42 @@ static void box_record(rf *r, uint32_t t)
     tri_box(r, t, lo, hi);
     float *b = r->box + 6 * (size_t)t;
     for (int c = 0; c < 3; c++) {
-        b[c] = (float)lo[c];
-        b[3 + c] = (float)hi[c];
+        float l = (float)lo[c], h = (float)hi[c];
+        __atomic_store(&b[c], &l, __ATOMIC_RELAXED);
+        __atomic_store(&b[3 + c], &h, __ATOMIC_RELAXED);
     }
 }
 
-/* Records triangle t's box and lists it in the grid at its place. */
-static tessel_status grid_add(rf *r, uint32_t t)
+/* Triangle t's recorded box. In a parallel phase of the flips a check may
+ * find, through a listing left from an earlier place, a triangle that
+ * another thread is flipping far away; either box it reads is far, so the
+ * box test rejects it, and the relaxed atomic accesses (plain moves)
+ * make that read well defined. */
+static inline void box_load(const rf *r, uint32_t t, float out[6])
 {
+    const float *b = r->box + 6 * (size_t)t;
+    for (int c = 0; c < 6; c++)
+        __atomic_load(&b[c], &out[c], __ATOMIC_RELAXED);
+}
+
+/* Records triangle t's new box and lists it in the grid there (in a
+ * parallel phase: in the worker's overlay), unless the cells it is listed
+ * in for its previous box hold the new one (a triangle is always listed in
+ * every cell of its recorded box). fresh: t is new (no previous box).
+ * *listed: whether it was listed now. */
+static tessel_status grid_add(rf *r, worker *w, uint32_t t, bool fresh, bool *listed)
+{
+    float *b = r->box + 6 * (size_t)t;
+    double olo[3] = {0.0, 0.0, 0.0}, ohi[3] = {0.0, 0.0, 0.0};
+    if (!fresh)
+        for (int c = 0; c < 3; c++)
+            olo[c] = b[c], ohi[c] = b[3 + c];
     box_record(r, t);
-    return grid_list(r, t);
+    const double lo[3] = {b[0], b[1], b[2]}, hi[3] = {b[3], b[4], b[5]};
+    *listed = fresh || !tsl_trigrid_covers(&r->grid, olo, ohi, lo, hi);
+    if (!*listed)
+        return TESSEL_OK;
+    return tsl_trigrid_insert(w->parallel ? &w->overlay : &r->grid, t, lo, hi);
 }
 
 /* Whether every point q[0 .. count) lies strictly on one side of the plane
@@ -328,7 +379,7 @@ static bool meets(const new_tri *x, const uint32_t ev[3], const double pe[3][3])
  * the mesh beyond shared vertices and edges (exact). One grid query covers
  * them all; the grid knows the changed triangles at their old place, so they
  * are tested against each other explicitly. */
-static tessel_status check_news(rf *r, const uint32_t *news, int count,
+static tessel_status check_news(const rf *r, worker *w, const uint32_t *news, int count,
                                 const double (*old_n)[3], bool *ok)
 {
     *ok = false;
@@ -365,15 +416,19 @@ static tessel_status check_news(rf *r, const uint32_t *news, int count,
         for (int b = a + 1; b < count; b++)
             if (meets(&nt[a], nt[b].v, (const double(*)[3])nt[b].p))
                 return TESSEL_OK;
-    tessel_status st = tsl_trigrid_query(&r->grid, lo, hi);
+    tessel_status st = tsl_trigrid_hits_begin(&w->hits, r->nt);
     if (st)
         return st;
-    for (size_t i = 0; i < r->grid.found_count; i++) {
-        uint32_t e = r->grid.found[i];
+    tsl_trigrid_collect(&r->grid, lo, hi, &w->hits);
+    if (w->parallel)
+        tsl_trigrid_collect(&w->overlay, lo, hi, &w->hits);
+    for (size_t i = 0; i < w->hits.count; i++) {
+        uint32_t e = w->hits.found[i];
         if (e >= r->nt)
             continue;
         /* The box of e where it is now (the grid may list it elsewhere). */
-        const float *eb = r->box + 6 * (size_t)e;
+        float eb[6];
+        box_load(r, e, eb);
         if (eb[3] < lo[0] || eb[0] > hi[0] || eb[4] < lo[1] || eb[1] > hi[1] ||
             eb[5] < lo[2] || eb[2] > hi[2])
             continue;
@@ -706,7 +761,7 @@ static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3
         olds[2][c] = olds[3][c] = old2[c];
     }
     bool ok;
-    if ((st = check_news(r, news, count, (const double(*)[3])olds, &ok)))
+    if ((st = check_news(r, r->serial, news, count, (const double(*)[3])olds, &ok)))
         return st;
     if (!ok) {
         /* Undo: restore T1, T2 and the outer twins; drop m, T3, T4. */
@@ -735,9 +790,11 @@ static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3
     if (T2 != NONE && ((st = map_put(&r->edges, m, b, 3 * T2 + (j + 1) % 3)) ||
                        (st = map_put(&r->edges, x, b, 3 * T4 + 1))))
         return st;
-    for (int q = 0; q < count; q++)
-        if ((st = grid_add(r, news[q])))
+    for (int q = 0; q < count; q++) {
+        bool listed; /* T3 and T4 are new */
+        if ((st = grid_add(r, r->serial, news[q], news[q] >= T3, &listed)))
             return st;
+    }
     r->stats.splits++;
     *done = true;
     return TESSEL_OK;
@@ -772,13 +829,53 @@ static bool other_diagonal_shorter(const double pu[3], const double pv[3], const
     return tsl_dot(d2, d2) < (1.0 - 1e-6) * tsl_dot(d1, d1);
 }
 
+static void worker_free(worker *w)
+{
+    tsl_trigrid_hits_free(&w->hits);
+    tsl_trigrid_free(&w->overlay);
+    free(w->log);
+    free(w->seg);
+    free(w->next);
+    free(w->tail);
+    memset(w, 0, sizeof *w);
+}
+
+/* Appends x to the array *a of *n (capacity *cap). */
+static bool push(uint32_t **a, size_t *n, size_t *cap, uint32_t x)
+{
+    if (*n == *cap && tsl_grow((void **)a, cap, *n + 1, sizeof **a))
+        return false;
+    (*a)[(*n)++] = x;
+    return true;
+}
+
+/* Whether the pair at half-edge h asks for a flip by the rule (see
+ * flip_edge), as its triangles stand. */
+static bool rule_holds(const rf *r, uint32_t h)
+{
+    uint32_t g = r->twin[h];
+    if (g == NONE)
+        return false;
+    uint32_t T1 = h / 3, i = h % 3, T2 = g / 3, j = g % 3;
+    uint32_t a = r->tri[3 * T1 + (i + 2) % 3], b = r->tri[3 * T2 + (j + 2) % 3];
+    if (a == b)
+        return false;
+    double pu[3], pv[3], pa[3], pb[3];
+    vtx(r, r->tri[3 * T1 + i], pu);
+    vtx(r, r->tri[3 * T1 + (i + 1) % 3], pv);
+    vtx(r, a, pa);
+    vtx(r, b, pb);
+    return r->delaunay ? opposite_angles_over_pi(pu, pv, pa, pb)
+                       : other_diagonal_shorter(pu, pv, pa, pb);
+}
+
 /* Flips the diagonal {u, v} of its two triangles when the rule asks for it
  * (r->delaunay: the opposite angles add up to more than pi; else the
  * paper's: the other diagonal is shorter) and the result is valid.
  * *again: refused for a reason outside the two triangles (the other
  * diagonal exists, or the flip would cut the mesh), so a later pass must
  * look at it again even if they stay as they are. */
-static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
+static tessel_status flip_edge(rf *r, worker *w, uint32_t h, bool *done, bool *again)
 {
     *done = false;
     *again = false;
@@ -795,13 +892,14 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
     vtx(r, v, pv);
     vtx(r, a, pa);
     vtx(r, b, pb);
-    /* The rule first; then the edge map (a cache miss on large meshes). */
+    /* The rule first; then the edge map (a cache miss on large meshes),
+     * which a parallel phase does not update: there the fan of a. */
     if (r->delaunay ? !opposite_angles_over_pi(pu, pv, pa, pb)
                     : !other_diagonal_shorter(pu, pv, pa, pb))
         return TESSEL_OK;
     *again = true;
-    if (r->edges.keys ? map_get(&r->edges, a, b) != NONE
-                      : edge_exists(r, 3 * T1 + (i + 2) % 3, b))
+    if (r->edges.keys && !w->parallel ? map_get(&r->edges, a, b) != NONE
+                                      : edge_exists(r, 3 * T1 + (i + 2) % 3, b))
         return TESSEL_OK;
     double n1[3], n2[3], avg[3];
     tri_cross(r, T1, n1);
@@ -829,9 +927,9 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
     uint32_t news[2] = {T1, T2};
     const double olds[2][3] = {{avg[0], avg[1], avg[2]}, {avg[0], avg[1], avg[2]}};
     bool ok;
-    tessel_status st0 = check_news(r, news, 2, olds, &ok);
-    if (st0)
-        return st0;
+    tessel_status st = check_news(r, w, news, 2, olds, &ok);
+    if (st)
+        return st;
     if (!ok) {
         memcpy(r->tri + 3 * (size_t)T1, save_tri, 3 * sizeof *save_tri);
         memcpy(r->tri + 3 * (size_t)T2, save_tri + 3, 3 * sizeof *save_tri);
@@ -841,11 +939,15 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
             set_twin(r, 3 * T1 + q, r->twin[3 * T1 + q]);
             set_twin(r, 3 * T2 + q, r->twin[3 * T2 + q]);
         }
-        r->stats.skipped_invalid++;
+        w->invalid++;
         return TESSEL_OK;
     }
-    tessel_status st;
-    if (r->edges.keys) {
+    if (w->parallel) {
+        const uint32_t rec[6] = {T1, T2, u, v, a, b};
+        for (int k = 0; k < 6; k++)
+            if (!push(&w->log, &w->nlog, &w->cap_log, rec[k]))
+                return TESSEL_ERR_NOMEM;
+    } else if (r->edges.keys) {
         map_del(&r->edges, u, v);
         if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) ||
             (st = map_put(&r->edges, u, b, 3 * T1)) ||
@@ -853,61 +955,335 @@ static tessel_status flip_edge(rf *r, uint32_t h, bool *done, bool *again)
             (st = map_put(&r->edges, v, a, 3 * T2)) || (st = map_put(&r->edges, b, v, 3 * T2 + 2)))
             return st;
     }
-    if ((st = grid_add(r, T1)) ||
-        (st = grid_add(r, T2)))
+    bool listed1, listed2;
+    if ((st = grid_add(r, w, T1, false, &listed1)) || (st = grid_add(r, w, T2, false, &listed2)))
         return st;
-    r->stats.flips++;
+    if (w->parallel) {
+        /* Which of the two the merge must list in the mesh's grid. */
+        w->log[w->nlog - 6] |= (uint32_t)listed1 << 31;
+        w->log[w->nlog - 5] |= (uint32_t)listed2 << 31;
+    }
+    w->flips++;
     *done = true;
     *again = false;
     return TESSEL_OK;
 }
 
-/* Flip passes until none flips (at most MAX_FLIP_PASSES), each in half-edge
- * order. The first pass looks at every edge; a later one only at the edges
- * whose answer may have changed: the six of the two triangles of every
- * flip (marked on both sides as the pass goes, so a mark ahead of the
- * cursor is taken in the same pass, as a full pass would) and those refused
- * for a reason outside their own two triangles. Every other edge would be
- * refused again for the same reason, so the flips are exactly those of
- * full passes, for a fraction of the reads: on 10^6 points the later
- * passes flip a few hundred edges out of 900,000. */
-static tessel_status flip_passes(rf *r)
+/* The flips run in passes. A pass looks at the edges marked for it: at
+ * first every edge; then the six of the two triangles of every flip (on
+ * both sides) and those refused for a reason outside their own two
+ * triangles (every other edge would be refused again for the same reason;
+ * on 10^6 points the later passes flip a few hundred edges out of
+ * 900,000).
+ *
+ * A pass runs in parallel, deterministically. Space is cut into blocks of
+ * BLOCK_CELLS grid cells a side, coloured by the parity of their three
+ * coordinates. Each pair of triangles whose boxes both fit in LONG_CELLS
+ * cells goes to the block of its box's centre; the eight colours take
+ * turns, and the blocks of one colour are flipped in parallel, each in
+ * half-edge order by one thread. Two blocks of a colour are at least a
+ * block apart, so the boxes of their pairs are more than BLOCK_CELLS - 2
+ * LONG_CELLS cells apart: neither flip reads a triangle, a twin or a grid
+ * cell the other writes, and none can meet the other's new triangles.
+ * Pairs with a longer triangle, and pairs whose block changed because a
+ * neighbour flipped first, are done after the colours, serially, in
+ * half-edge order (the tail). The result depends on the mesh only, not on
+ * the thread count. */
+#define BLOCK_CELLS 8
+#define LONG_CELLS 2
+#define MAX_BLOCKS (1u << 21)
+
+typedef struct blocks {
+    double origin[3], size, reach;
+    int n[3];
+    uint32_t count; /* blocks; keys run over 8 count (colour-major) */
+} blocks;
+
+static void blocks_init(const rf *r, blocks *b)
+{
+    double cell = 1.0 / r->grid.inv_cell;
+    b->reach = LONG_CELLS * cell;
+    b->size = BLOCK_CELLS * cell;
+    for (;;) {
+        size_t count = 1;
+        for (int k = 0; k < 3; k++) {
+            double n = floor((r->hi[k] - r->lo[k]) / b->size) + 1.0;
+            b->n[k] = n < (double)MAX_BLOCKS ? (int)n : (int)MAX_BLOCKS;
+            count *= (size_t)b->n[k];
+        }
+        if (count <= MAX_BLOCKS) {
+            b->count = (uint32_t)count;
+            break;
+        }
+        b->size *= 2.0;
+    }
+    memcpy(b->origin, r->lo, sizeof b->origin);
+}
+
+/* The key (colour count + block) of the pair at half-edge h, or NONE when
+ * one of its triangles is long (the tail takes it). */
+static uint32_t pair_key(const rf *r, const blocks *b, uint32_t h)
+{
+    const float *b1 = r->box + 6 * (size_t)(h / 3), *b2 = r->box + 6 * (size_t)(r->twin[h] / 3);
+    uint32_t id = 0, colour = 0;
+    for (int k = 2; k >= 0; k--) {
+        if (b1[3 + k] - b1[k] > b->reach || b2[3 + k] - b2[k] > b->reach)
+            return NONE;
+        double lo = b1[k] < b2[k] ? b1[k] : b2[k], hi = b1[3 + k] > b2[3 + k] ? b1[3 + k] : b2[3 + k];
+        double x = floor((0.5 * (lo + hi) - b->origin[k]) / b->size);
+        int c = x < 0.0 ? 0 : x >= (double)b->n[k] ? b->n[k] - 1 : (int)x;
+        colour |= (uint32_t)(c & 1) << k;
+        id = id * (uint32_t)b->n[k] + (uint32_t)c;
+    }
+    return colour * b->count + id;
+}
+
+/* Marks for the next pass the six edges of the two triangles of a flip at
+ * h, on both sides. */
+static bool mark_flipped(const rf *r, uint32_t h, uint32_t g, uint8_t *look, worker *w)
+{
+    const uint32_t quad[2] = {h / 3, g / 3};
+    for (int q = 0; q < 2; q++)
+        for (uint32_t i = 0; i < 3; i++) {
+            uint32_t e = 3 * quad[q] + i, f = r->twin[e];
+            if (look) {
+                look[e] = 1;
+                if (f != NONE)
+                    look[f] = 1;
+            } else if (!push(&w->next, &w->nnext, &w->cap_next, e) ||
+                       (f != NONE && !push(&w->next, &w->nnext, &w->cap_next, f))) {
+                return false;
+            }
+        }
+    return true;
+}
+
+/* One block of a parallel phase: the pairs list[0 .. n) of key `key`. */
+static void flip_block(rf *r, const blocks *b, worker *w, uint32_t key, const uint32_t *list,
+                       size_t n)
+{
+    /* The overlay holds this block's flips only: the other blocks of the
+     * phase are far, and the log carries everything to the mesh's grid. */
+    tsl_trigrid_clear(&w->overlay);
+    for (size_t k = 0; k < n && !w->status; k++) {
+        uint32_t h = list[k], g = r->twin[h];
+        if (g == NONE)
+            continue;
+        if (pair_key(r, b, h) != key) {
+            if (!push(&w->tail, &w->ntail, &w->cap_tail, h))
+                w->status = TESSEL_ERR_NOMEM;
+            continue;
+        }
+        bool done, again;
+        if ((w->status = flip_edge(r, w, h, &done, &again)))
+            break;
+        if (done ? !mark_flipped(r, h, g, NULL, w)
+                 : again && !push(&w->next, &w->nnext, &w->cap_next, h))
+            w->status = TESSEL_ERR_NOMEM;
+    }
+    if (!w->status && (!push(&w->seg, &w->nseg, &w->cap_seg, key) ||
+                       !push(&w->seg, &w->nseg, &w->cap_seg, (uint32_t)w->nlog)))
+        w->status = TESSEL_ERR_NOMEM;
+}
+
+typedef struct seg_ref {
+    uint32_t key, worker;
+    size_t index;
+} seg_ref;
+
+static int cmp_seg(const void *a, const void *b)
+{
+    uint32_t x = ((const seg_ref *)a)->key, y = ((const seg_ref *)b)->key;
+    return (x > y) - (x < y);
+}
+
+/* After a phase: the flips of every block, in key order, into the edge
+ * map and the grid; the marks into look; the tails gathered. */
+static tessel_status merge_phase(rf *r, worker *ws, int nw, uint8_t *look, uint32_t **tail,
+                                 size_t *ntail, size_t *cap_tail)
+{
+    size_t nseg = 0;
+    for (int t = 0; t < nw; t++)
+        nseg += ws[t].nseg / 2;
+    /* The blocks done, by key: (key, worker, index of the block's part). */
+    seg_ref *order = tsl_alloc_array(nseg ? nseg : 1, sizeof *order);
+    if (!order)
+        return TESSEL_ERR_NOMEM;
+    size_t m = 0;
+    for (int t = 0; t < nw; t++)
+        for (size_t k = 0; k < ws[t].nseg / 2; k++)
+            order[m++] = (seg_ref){ws[t].seg[2 * k], (uint32_t)t, k};
+    if (m)
+        qsort(order, m, sizeof *order, cmp_seg);
+    tessel_status st = TESSEL_OK;
+    for (size_t k = 0; k < m && !st; k++) {
+        const worker *w = &ws[order[k].worker];
+        size_t s = order[k].index;
+        size_t from = s ? w->seg[2 * s - 1] : 0, to = w->seg[2 * s + 1];
+        for (size_t f = from; f < to && !st; f += 6) {
+            const uint32_t *x = w->log + f;
+            const uint32_t top = (uint32_t)1 << 31;
+            uint32_t T1 = x[0] & ~top, T2 = x[1] & ~top, u = x[2], v = x[3], a = x[4], b = x[5];
+            if (r->edges.keys) {
+                map_del(&r->edges, u, v);
+                if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) ||
+                    (st = map_put(&r->edges, u, b, 3 * T1)) ||
+                    (st = map_put(&r->edges, a, u, 3 * T1 + 2)) ||
+                    (st = map_put(&r->edges, v, a, 3 * T2)) ||
+                    (st = map_put(&r->edges, b, v, 3 * T2 + 2)))
+                    break;
+            }
+            /* A triangle one of whose flips had to be listed is listed at
+             * its box as it ends the phase; the boxes of the others stayed
+             * within cells where they are listed already. */
+            if ((x[0] & top && (st = grid_list(r, T1))) || (x[1] & top && (st = grid_list(r, T2))))
+                break;
+        }
+    }
+    free(order);
+    for (int t = 0; t < nw && !st; t++) {
+        worker *w = &ws[t];
+        for (size_t k = 0; k < w->nnext; k++)
+            look[w->next[k]] = 1;
+        for (size_t k = 0; k < w->ntail && !st; k++)
+            if (!push(tail, ntail, cap_tail, w->tail[k]))
+                st = TESSEL_ERR_NOMEM;
+        w->nlog = w->nseg = w->nnext = w->ntail = 0;
+    }
+    return st;
+}
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* The serial tail of a pass: the pairs tail[0 .. n), sorted, in order. */
+static tessel_status flip_tail(rf *r, uint32_t *tail, size_t n, uint8_t *look, size_t *flips)
+{
+    if (n)
+        qsort(tail, n, sizeof *tail, cmp_u32);
+    worker *w = r->serial;
+    for (size_t k = 0; k < n; k++) {
+        uint32_t h = tail[k], g = r->twin[h];
+        if ((k && tail[k - 1] == h) || g == NONE)
+            continue;
+        bool done, again;
+        size_t before = w->flips;
+        tessel_status st = flip_edge(r, w, h, &done, &again);
+        if (st)
+            return st;
+        *flips += w->flips - before;
+        if (done)
+            mark_flipped(r, h, g, look, NULL);
+        else if (again)
+            look[h] = 1;
+    }
+    return TESSEL_OK;
+}
+
+static tessel_status flip_passes(rf *r, int threads)
 {
     size_t nh = 3 * r->nt;
+    int nw = tsl_threads(threads);
+    /* A pair is taken at the smaller of its two half-edges. */
     uint8_t *look = tsl_alloc_array(nh ? nh : 1, 1);
-    if (!look)
-        return TESSEL_ERR_NOMEM;
+    uint32_t *work = tsl_alloc_array(nh / 2 + 1, sizeof *work);
+    uint32_t *key = tsl_alloc_array(nh / 2 + 1, sizeof *key);
+    uint32_t *sorted = tsl_alloc_array(nh / 2 + 1, sizeof *sorted);
+    worker *ws = tsl_calloc_array((size_t)nw, sizeof *ws);
+    uint32_t *start = NULL, *tail = NULL;
+    size_t ntail = 0, cap_tail = 0;
+    blocks b;
+    blocks_init(r, &b);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!look || !work || !key || !sorted || !ws ||
+        !(start = tsl_calloc_array(8 * (size_t)b.count + 1, sizeof *start)))
+        goto done;
+    st = TESSEL_OK;
+    for (int t = 0; t < nw && !st; t++) {
+        ws[t].parallel = true;
+        st = tsl_trigrid_init_like(&ws[t].overlay, &r->grid);
+    }
     memset(look, 1, nh);
-    tessel_status st = TESSEL_OK;
     for (int pass = 0; pass < MAX_FLIP_PASSES && !st; pass++) {
-        size_t flips = 0;
-        for (size_t hh = 0; hh < nh; hh++) {
-            if (!look[hh])
+        /* The pairs to look at, each once (at its smaller half-edge), that
+         * the rule asks to flip as the mesh stands (in parallel: a pair
+         * that changes later in the pass is marked for the next one), by
+         * key and in half-edge order within a key (counting sort). */
+        size_t nwork = 0, flips = 0;
+        ntail = 0;
+        ptrdiff_t count = (ptrdiff_t)nh;
+#pragma omp parallel for schedule(static) num_threads(nw)
+        for (ptrdiff_t h = 0; h < count; h++) {
+            if (!look[h])
                 continue;
-            look[hh] = 0;
-            uint32_t g = r->twin[hh];
-            if (g == NONE || g < hh)
-                continue;
-            bool done, again;
-            if ((st = flip_edge(r, (uint32_t)hh, &done, &again)))
-                break;
-            look[hh] = again;
-            if (!done)
-                continue;
-            flips++;
-            const uint32_t quad[2] = {(uint32_t)hh / 3, g / 3};
-            for (int q = 0; q < 2; q++)
-                for (uint32_t i = 0; i < 3; i++) {
-                    uint32_t e = 3 * quad[q] + i, w = r->twin[e];
-                    look[e] = 1;
-                    if (w != NONE)
-                        look[w] = 1;
-                }
+            uint32_t g = r->twin[h];
+            look[h] = g != NONE && g > (uint32_t)h && rule_holds(r, (uint32_t)h) ? 2 : 0;
         }
+        memset(start, 0, (8 * (size_t)b.count + 1) * sizeof *start);
+        for (size_t h = 0; h < nh && !st; h++) {
+            if (look[h] != 2)
+                continue;
+            look[h] = 0;
+            uint32_t k = pair_key(r, &b, (uint32_t)h);
+            if (k == NONE) {
+                if (!push(&tail, &ntail, &cap_tail, (uint32_t)h))
+                    st = TESSEL_ERR_NOMEM;
+                continue;
+            }
+            work[nwork] = (uint32_t)h;
+            key[nwork++] = k;
+            start[k + 1]++;
+        }
+        for (size_t k = 0; k < 8 * (size_t)b.count; k++)
+            start[k + 1] += start[k];
+        for (size_t k = 0; k < nwork; k++)
+            sorted[start[key[k]]++] = work[k];
+        /* start[k] is now the end of key k's pairs. */
+        for (uint32_t colour = 0; colour < 8 && !st; colour++) {
+            /* The non-empty blocks of this colour, as (key) in work[]. */
+            size_t nb = 0;
+            for (uint32_t k = colour * b.count; k < (colour + 1) * b.count; k++)
+                if (start[k] > (k ? start[k - 1] : 0))
+                    work[nb++] = k;
+            count = (ptrdiff_t)nb;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nw)
+            for (ptrdiff_t q = 0; q < count; q++) {
+                uint32_t k = work[q];
+                size_t from = k ? start[k - 1] : 0;
+                worker *w = &ws[omp_get_thread_num()];
+                flip_block(r, &b, w, k, sorted + from, start[k] - from);
+            }
+            for (int t = 0; t < nw && !st; t++) {
+                st = ws[t].status;
+                flips += ws[t].flips;
+                r->stats.flips += ws[t].flips;
+                r->stats.skipped_invalid += ws[t].invalid;
+                ws[t].flips = ws[t].invalid = 0;
+            }
+            if (!st)
+                st = merge_phase(r, ws, nw, look, &tail, &ntail, &cap_tail);
+        }
+        if (!st)
+            st = flip_tail(r, tail, ntail, look, &flips);
         if (!flips)
             break;
     }
+    r->stats.flips += r->serial->flips;
+    r->stats.skipped_invalid += r->serial->invalid;
+    r->serial->flips = r->serial->invalid = 0;
+done:
+    for (int t = 0; ws && t < nw; t++)
+        worker_free(&ws[t]);
+    free(ws);
     free(look);
+    free(work);
+    free(key);
+    free(sorted);
+    free(start);
+    free(tail);
     return st;
 }
 
@@ -993,6 +1369,8 @@ static tessel_status build_grid(rf *r)
         mean_len += tsl_norm(d);
     }
     mean_len /= (double)r->nt;
+    memcpy(r->lo, lo, sizeof r->lo);
+    memcpy(r->hi, hi, sizeof r->hi);
     /* Sized beforehand: growing the grid insert by insert cost 40% more on
      * 2,000,000 triangles (copies and rehashes). A cell holds about 16
      * entries on the meshes of the project. */
@@ -1188,7 +1566,7 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
     if (st)
         goto done;
     if (p->flip)
-        st = flip_passes(r);
+        st = flip_passes(r, c->threads);
 done:
     free(jobs);
     free(want);
@@ -1234,6 +1612,9 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
 
     rf r;
     memset(&r, 0, sizeof r);
+    worker serial;
+    memset(&serial, 0, sizeof serial);
+    r.serial = &serial;
     tessel_projector *own = NULL;
     tessel_index *own_index = NULL;
     r.nv = mesh->vertex_count;
@@ -1323,6 +1704,7 @@ done:
     map_free(&r.fit_of);
     free(r.fit_sum);
     tsl_trigrid_free(&r.grid);
+    worker_free(&serial);
     return st;
 }
 
@@ -1367,7 +1749,7 @@ static tessel_status renumber(const float *xyz, size_t nv, uint32_t *tri, size_t
 }
 
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
-                                 size_t *flips)
+                                 int threads, size_t *flips)
 {
     *flips = 0;
     if (nv >= UINT32_MAX || nt >= UINT32_MAX / 3)
@@ -1389,6 +1771,9 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
         return st;
     rf r;
     memset(&r, 0, sizeof r);
+    worker serial;
+    memset(&serial, 0, sizeof serial);
+    r.serial = &serial;
     r.xyz = local;
     r.nv = used;
     r.tri = tri;
@@ -1399,7 +1784,7 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
     st = TESSEL_ERR_NOMEM;
     if (r.twin && r.box && !(st = build_twins(&r, 0)) && !(st = build_grid(&r)))
-        st = flip_passes(&r);
+        st = flip_passes(&r, threads);
     for (size_t i = 0; i < 3 * nt; i++)
         tri[i] = back[tri[i]];
     free(back);
@@ -1409,5 +1794,6 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     free(r.box);
     map_free(&r.edges);
     tsl_trigrid_free(&r.grid);
+    worker_free(&serial);
     return st;
 }

@@ -546,7 +546,7 @@ static void test_flip_diagonals(void)
     const float xyz[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0, 100, 100, 100};
     uint32_t tri[6] = {0, 1, 2, 0, 2, 3};
     size_t flips = 0;
-    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK);
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, 1, &flips) == TESSEL_OK);
     CHECK(flips == 1);
     bool has13[2] = {false, false};
     for (int t = 0; t < 2; t++)
@@ -556,12 +556,12 @@ static void test_flip_diagonals(void)
         }
     CHECK(has13[0] && has13[1]);
     /* Flipping again changes nothing: the pair is Delaunay now. */
-    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, &flips) == TESSEL_OK && flips == 0);
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, 1, &flips) == TESSEL_OK && flips == 0);
     /* The same rhombus with its points stored in another order (the flips
      * number the vertices afresh inside and must give the ids back). */
     const float shuffled[] = {100, 100, 100, 1, 1, 0, 3, 1, 0, 0, 0, 0, 2, 0, 0};
     uint32_t st[6] = {3, 4, 2, 3, 2, 1}; /* 0 -> 3, 1 -> 4, 2 -> 2, 3 -> 1 */
-    CHECK(tsl_flip_diagonals(shuffled, 5, st, 2, &flips) == TESSEL_OK && flips == 1);
+    CHECK(tsl_flip_diagonals(shuffled, 5, st, 2, 1, &flips) == TESSEL_OK && flips == 1);
     for (int t = 0; t < 2; t++) {
         bool has41 = false;
         for (int i = 0; i < 3; i++) {
@@ -577,9 +577,9 @@ static void test_flip_diagonals(void)
     const float lifted[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0.3f,
                             1.5f, 0.5f, 0.075f, 1.5f, 0.5f, 5, 1.6f, 0.6f, 5};
     uint32_t lt[9] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
-    CHECK(tsl_flip_diagonals(lifted, 7, lt, 3, &flips) == TESSEL_OK && flips == 0);
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 3, 1, &flips) == TESSEL_OK && flips == 0);
     CHECK(memcmp(lt, (uint32_t[]){0, 1, 2, 0, 2, 3, 4, 5, 6}, sizeof lt) == 0);
-    CHECK(tsl_flip_diagonals(lifted, 7, lt, 2, &flips) == TESSEL_OK && flips == 1);
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 2, 1, &flips) == TESSEL_OK && flips == 1);
     /* Two fans at vertex 0 (a bow tie), an edge in three triangles, an edge
      * run twice the same way, a bad index. */
     const float six[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0, 0, 0, 1};
@@ -587,16 +587,81 @@ static void test_flip_diagonals(void)
     uint32_t three[9] = {0, 1, 2, 1, 0, 3, 1, 0, 4};
     uint32_t same_way[6] = {0, 1, 2, 0, 1, 3};
     uint32_t bad[3] = {0, 1, 6};
-    CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, 1, &flips) == TESSEL_ERR_INVALID_ARG);
     CHECK(memcmp(bowtie, (uint32_t[]){0, 1, 2, 0, 3, 4}, sizeof bowtie) == 0);
-    CHECK(tsl_flip_diagonals(six, 6, three, 3, &flips) == TESSEL_ERR_INVALID_ARG);
-    CHECK(tsl_flip_diagonals(six, 6, same_way, 2, &flips) == TESSEL_ERR_INVALID_ARG);
-    CHECK(tsl_flip_diagonals(six, 6, bad, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, three, 3, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, same_way, 2, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, bad, 1, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+}
+
+/* The flips of tsl_flip_diagonals run block by block in parallel: on a
+ * jittered latitude-longitude sphere (many blocks) whose quads are split
+ * either way at random, one and two threads flip the same diagonals, and
+ * the result is a valid closed sphere. */
+static void test_flip_blocks(void)
+{
+    enum { RINGS = 90, SEGS = 180 };
+    size_t nv = (size_t)(RINGS - 1) * SEGS + 2, nt = 2 * (size_t)SEGS * (RINGS - 1);
+    float *xyz = malloc(3 * nv * sizeof *xyz);
+    uint32_t *tri = malloc(3 * nt * sizeof *tri), *two = malloc(3 * nt * sizeof *two);
+    CHECK(xyz && tri && two);
+    if (!xyz || !tri || !two)
+        goto done;
+    surf_rng seed = surf_seed(7);
+    const double pi = acos(-1.0), jitter = 0.3 * pi / RINGS;
+    xyz[0] = 0, xyz[1] = 0, xyz[2] = 1;
+    xyz[3 * (nv - 1)] = 0, xyz[3 * (nv - 1) + 1] = 0, xyz[3 * (nv - 1) + 2] = -1;
+    for (int j = 1; j < RINGS; j++)
+        for (int i = 0; i < SEGS; i++) {
+            double th = pi * j / RINGS + jitter * (surf_uniform(&seed) - 0.5);
+            double ph = 2 * pi * (i + 0.3 * (surf_uniform(&seed) - 0.5)) / SEGS;
+            float *p = xyz + 3 * (1 + (size_t)(j - 1) * SEGS + (size_t)i);
+            p[0] = (float)(sin(th) * cos(ph)), p[1] = (float)(sin(th) * sin(ph));
+            p[2] = (float)cos(th);
+        }
+    size_t t = 0;
+#define V(j, i) ((j) == 0 ? 0u : (j) == RINGS ? (uint32_t)nv - 1 : 1u + (uint32_t)(((j) - 1) * SEGS + (i) % SEGS))
+    for (int j = 0; j < RINGS; j++)
+        for (int i = 0; i < SEGS; i++) {
+            uint32_t a = V(j, i), b = V(j, i + 1), c = V(j + 1, i + 1), d = V(j + 1, i);
+            uint32_t q[2][3] = {{a, c, b}, {a, d, c}};
+            if (surf_uniform(&seed) < 0.5) {
+                uint32_t r2[2][3] = {{a, d, b}, {b, d, c}};
+                memcpy(q, r2, sizeof q);
+            }
+            for (int k = 0; k < 2; k++) {
+                if (q[k][0] == q[k][1] || q[k][1] == q[k][2] || q[k][0] == q[k][2])
+                    continue; /* the caps' quads are triangles */
+                memcpy(tri + 3 * t++, q[k], sizeof q[k]);
+            }
+        }
+#undef V
+    nt = t;
+    tessel_mesh m;
+    memset(&m, 0, sizeof m);
+    m.xyz = xyz, m.vertex_count = nv, m.triangles = tri, m.triangle_count = nt;
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(valid_closed(&r, 0), "before: %zu boundary edges, %zu self-intersections",
+              r.boundary_edges, r.self_intersections);
+    memcpy(two, tri, 3 * nt * sizeof *tri);
+    size_t flips1 = 0, flips2 = 0;
+    CHECK(tsl_flip_diagonals(xyz, nv, tri, nt, 1, &flips1) == TESSEL_OK);
+    CHECK(tsl_flip_diagonals(xyz, nv, two, nt, 2, &flips2) == TESSEL_OK);
+    CHECK_MSG(flips1 > 1000 && flips1 == flips2 && memcmp(tri, two, 3 * nt * sizeof *tri) == 0,
+              "%zu and %zu flips", flips1, flips2);
+    r = check(&m);
+    CHECK_MSG(valid_closed(&r, 0), "%zu boundary edges, %zu self-intersections",
+              r.boundary_edges, r.self_intersections);
+done:
+    free(xyz);
+    free(tri);
+    free(two);
 }
 
 int main(void)
 {
     test_flip_diagonals();
+    test_flip_blocks();
     test_refine_sphere();
     test_refine_rounds();
     test_refine_plane();
