@@ -7,8 +7,8 @@
  * reconstruct` does, or into a counting sink (--count). By default the
  * triangles are held for the orientation check and the diagonal flips
  * (src/greedy_held.c), as `tessel reconstruct` does; --stream sends them on
- * as they are final (`tessel reconstruct --stream`). The check's rays use
- * OpenMP's threads:
+ * as they are final (`tessel reconstruct --stream`). The front runs on
+ * one core; the orientation check and the flips use OpenMP's threads:
  * OMP_NUM_THREADS=1 keeps the whole run on one core.
  *
  * Prints for each input: triangles, boundary edges, components, points
@@ -179,7 +179,9 @@ int main(int argc, char **argv)
         } else
             nfiles++;
     }
-    printf("tessel %s greedy projection benchmark, one core\n", tessel_version());
+    printf("tessel %s greedy projection benchmark (the front on one core; the check and the "
+           "flips on OMP_NUM_THREADS threads)\n",
+           tessel_version());
     if (nfiles) {
         for (int i = 1; i < argc; i++) {
             if (strcmp(argv[i], "--sizes") == 0 || strcmp(argv[i], "--write") == 0 ||
