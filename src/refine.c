@@ -508,11 +508,19 @@ static tessel_status reserve(rf *r, size_t more_v, size_t more_t)
     return TESSEL_OK;
 }
 
+/* Twins are stored and, where a parallel phase of the flips may read a
+ * pair that another thread owns (pair_key), loaded with relaxed atomics
+ * (plain moves): such a read only finds the pair is not the reader's. */
 static inline void set_twin(rf *r, uint32_t h, uint32_t g)
 {
-    r->twin[h] = g;
+    __atomic_store_n(&r->twin[h], g, __ATOMIC_RELAXED);
     if (g != NONE)
-        r->twin[g] = h;
+        __atomic_store_n(&r->twin[g], h, __ATOMIC_RELAXED);
+}
+
+static inline uint32_t twin_load(const rf *r, uint32_t h)
+{
+    return __atomic_load_n(&r->twin[h], __ATOMIC_RELAXED);
 }
 
 /* Every triangle has three distinct vertices, all in range. */
@@ -1024,7 +1032,12 @@ static void blocks_init(const rf *r, blocks *b)
  * one of its triangles is long (the tail takes it). */
 static uint32_t pair_key(const rf *r, const blocks *b, uint32_t h)
 {
-    const float *b1 = r->box + 6 * (size_t)(h / 3), *b2 = r->box + 6 * (size_t)(r->twin[h] / 3);
+    uint32_t g = twin_load(r, h);
+    if (g == NONE)
+        return NONE;
+    float b1[6], b2[6];
+    box_load(r, h / 3, b1);
+    box_load(r, g / 3, b2);
     uint32_t id = 0, colour = 0;
     for (int k = 2; k >= 0; k--) {
         if (b1[3 + k] - b1[k] > b->reach || b2[3 + k] - b2[k] > b->reach)
@@ -1066,7 +1079,7 @@ static void flip_block(rf *r, const blocks *b, worker *w, uint32_t key, const ui
      * phase are far, and the log carries everything to the mesh's grid. */
     tsl_trigrid_clear(&w->overlay);
     for (size_t k = 0; k < n && !w->status; k++) {
-        uint32_t h = list[k], g = r->twin[h];
+        uint32_t h = list[k], g = twin_load(r, h);
         if (g == NONE)
             continue;
         if (pair_key(r, b, h) != key) {
