@@ -999,7 +999,9 @@ static tessel_status flip_edge(rf *r, worker *w, uint32_t h, bool *done, bool *a
  * the thread count. */
 #define BLOCK_CELLS 8
 #define LONG_CELLS 2
-#define MAX_BLOCKS (1u << 21)
+/* Blocks at most (larger blocks beyond): a pass's counting sort has 8
+ * counters per block, cleared every pass. */
+#define MAX_BLOCKS (1u << 18)
 
 typedef struct blocks {
     double origin[3], size, reach;
