@@ -180,6 +180,19 @@ tessel_front_params tessel_front_params_default(void)
 
 #define GRID_AXIS_CELLS 2097151 /* 2^21 - 1: three axes pack into 63 bits */
 
+/* The first, empty table of cells. */
+static tessel_status grid_alloc(tsl_trigrid *g)
+{
+    g->slots = 1024;
+    g->keys = tsl_calloc_array(g->slots, sizeof *g->keys);
+    g->heads = tsl_alloc_array(g->slots, sizeof *g->heads);
+    if (!g->keys || !g->heads) {
+        tsl_trigrid_free(g);
+        return TESSEL_ERR_NOMEM;
+    }
+    return TESSEL_OK;
+}
+
 tessel_status tsl_trigrid_init(tsl_trigrid *g, const double lo[3], const double hi[3],
                                double cell)
 {
@@ -196,14 +209,15 @@ tessel_status tsl_trigrid_init(tsl_trigrid *g, const double lo[3], const double 
     if (extent / cell > (double)(GRID_AXIS_CELLS - 2))
         cell = extent / (double)(GRID_AXIS_CELLS - 2);
     g->inv_cell = 1.0 / cell;
-    g->slots = 1024;
-    g->keys = tsl_calloc_array(g->slots, sizeof *g->keys);
-    g->heads = tsl_alloc_array(g->slots, sizeof *g->heads);
-    if (!g->keys || !g->heads) {
-        tsl_trigrid_free(g);
-        return TESSEL_ERR_NOMEM;
-    }
-    return TESSEL_OK;
+    return grid_alloc(g);
+}
+
+tessel_status tsl_trigrid_init_like(tsl_trigrid *g, const tsl_trigrid *like)
+{
+    memset(g, 0, sizeof *g);
+    memcpy(g->origin, like->origin, sizeof g->origin);
+    g->inv_cell = like->inv_cell;
+    return grid_alloc(g);
 }
 
 void tsl_trigrid_free(tsl_trigrid *g)
@@ -214,8 +228,7 @@ void tsl_trigrid_free(tsl_trigrid *g)
     free(g->heads);
     free(g->ent_tri);
     free(g->ent_next);
-    free(g->stamp);
-    free(g->found);
+    tsl_trigrid_hits_free(&g->hits);
     memset(g, 0, sizeof *g);
 }
 
@@ -357,43 +370,10 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
 
 tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3])
 {
-    int32_t c0[3], c1[3];
-    for (int i = 0; i < 3; i++) {
-        c0[i] = grid_coord(g, lo[i], i);
-        c1[i] = grid_coord(g, hi[i], i);
-    }
-    g->found_count = 0;
-    if (g->id_end > g->stamp_cap) {
-        size_t old = g->stamp_cap;
-        if (tsl_grow((void **)&g->stamp, &g->stamp_cap, g->id_end, sizeof *g->stamp))
-            return TESSEL_ERR_NOMEM;
-        memset(g->stamp + old, 0, (g->stamp_cap - old) * sizeof *g->stamp);
-        /* A query finds each id at most once: room for every id. */
-        if (tsl_grow((void **)&g->found, &g->found_cap, g->stamp_cap, sizeof *g->found))
-            return TESSEL_ERR_NOMEM;
-    }
-    if (++g->stamp_now == 0) {
-        memset(g->stamp, 0, g->stamp_cap * sizeof *g->stamp);
-        g->stamp_now = 1;
-    }
-    for (int32_t x = c0[0]; x <= c1[0]; x++)
-        for (int32_t y = c0[1]; y <= c1[1]; y++)
-            for (int32_t z = c0[2]; z <= c1[2]; z++) {
-                uint64_t key = grid_key(x, y, z);
-                size_t s = grid_slot(g, key);
-                while (g->keys[s] && g->keys[s] != key)
-                    s = (s + 1) & (g->slots - 1);
-                if (!g->keys[s])
-                    continue;
-                for (uint32_t ent = g->heads[s]; ent != NONE; ent = g->ent_next[ent]) {
-                    uint32_t t = g->ent_tri[ent];
-                    if (g->stamp[t] == g->stamp_now)
-                        continue;
-                    g->stamp[t] = g->stamp_now;
-                    g->found[g->found_count++] = t;
-                }
-            }
-    return TESSEL_OK;
+    tessel_status st = tsl_trigrid_hits_begin(&g->hits, g->id_end);
+    if (st == TESSEL_OK)
+        tsl_trigrid_collect(g, lo, hi, &g->hits);
+    return st;
 }
 
 bool tsl_trigrid_covers(const tsl_trigrid *g, const double olo[3], const double ohi[3],
@@ -404,21 +384,6 @@ bool tsl_trigrid_covers(const tsl_trigrid *g, const double olo[3], const double 
             grid_coord(g, hi[i], i) > grid_coord(g, ohi[i], i))
             return false;
     return true;
-}
-
-tessel_status tsl_trigrid_init_like(tsl_trigrid *g, const tsl_trigrid *like)
-{
-    memset(g, 0, sizeof *g);
-    memcpy(g->origin, like->origin, sizeof g->origin);
-    g->inv_cell = like->inv_cell;
-    g->slots = 1024;
-    g->keys = tsl_calloc_array(g->slots, sizeof *g->keys);
-    g->heads = tsl_alloc_array(g->slots, sizeof *g->heads);
-    if (!g->keys || !g->heads) {
-        tsl_trigrid_free(g);
-        return TESSEL_ERR_NOMEM;
-    }
-    return TESSEL_OK;
 }
 
 void tsl_trigrid_clear(tsl_trigrid *g)
@@ -1027,8 +992,8 @@ static tessel_status check_triangle(af *s, const af_tri *x, const af_tri *other,
     tessel_status st = tsl_trigrid_query(&s->grid, lo, hi);
     if (st)
         return st;
-    for (size_t i = 0; i < s->grid.found_count; i++) {
-        uint32_t t = s->grid.found[i];
+    for (size_t i = 0; i < s->grid.hits.count; i++) {
+        uint32_t t = s->grid.hits.found[i];
         const af_tinfo *info = &s->ti[t];
         /* The box first: it rejects about a quarter, and erased triangles
          * are rare. */
@@ -1414,8 +1379,8 @@ static tessel_status seed_sign(af *s, const af_tri *x, int *sign)
             return st;
         double best = INFINITY;
         uint32_t best_t = NONE;
-        for (size_t i = 0; i < s->grid.found_count; i++) {
-            uint32_t t = s->grid.found[i];
+        for (size_t i = 0; i < s->grid.hits.count; i++) {
+            uint32_t t = s->grid.hits.found[i];
             if (s->tri[3 * (size_t)t] == NONE)
                 continue;
             double d2 = 0.0;
@@ -2848,8 +2813,8 @@ static tessel_status orient_tiles(uint32_t *tri, const uint32_t *comp, size_t co
             goto done;
         double best = radius * radius;
         uint32_t best_j = NONE;
-        for (size_t f = 0; f < grid.found_count; f++) {
-            uint32_t j = grid.found[f];
+        for (size_t f = 0; f < grid.hits.count; f++) {
+            uint32_t j = grid.hits.found[f];
             if (comp[list[j]] == comp[list[i]])
                 continue;
             double d[3], h;

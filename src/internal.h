@@ -126,6 +126,20 @@ double tsl_orient3d(const double a[3], const double b[3], const double c[3],
  * cell its bounding box meets. Insert-only: a caller that replaces
  * triangles inserts the new ones and skips stale ids it gets back, so a
  * query returns a superset of the triangles whose boxes meet the box. */
+
+/* A query's result with its own scratch, so that several threads can
+ * query one grid at once: tsl_trigrid_hits_begin starts a result for ids
+ * below id_end, and each tsl_trigrid_collect adds the ids listed in the
+ * cells of a grid that meet [lo, hi] (the grid only read), each id once
+ * per result, into found[0 .. count). */
+typedef struct tsl_trigrid_hits {
+    uint32_t *stamp; /* per triangle id: the last result that has it */
+    size_t stamp_cap;
+    uint32_t stamp_now;
+    uint32_t *found;
+    size_t count;
+} tsl_trigrid_hits;
+
 typedef struct tsl_trigrid {
     double origin[3], inv_cell;
     uint64_t *keys;          /* slots: cell key + 1 (0 = empty) */
@@ -134,46 +148,30 @@ typedef struct tsl_trigrid {
     uint32_t *ent_tri, *ent_next;
     size_t entries, ent_cap;
     size_t id_end;           /* one past the largest id inserted */
-    uint32_t *stamp;         /* per triangle id: last query that found it */
-    size_t stamp_cap;
-    uint32_t stamp_now;
-    uint32_t *found;         /* result of the last query */
-    size_t found_count, found_cap;
+    tsl_trigrid_hits hits;   /* tsl_trigrid_query's result */
 } tsl_trigrid;
 
 /* cell: edge length of a cell (> 0); [lo, hi]: the box that will hold the
  * triangles (used to keep cell coordinates in range). */
 tessel_status tsl_trigrid_init(tsl_trigrid *g, const double lo[3], const double hi[3],
                                double cell);
+/* An empty grid with the cells of like (same origin and cell). */
+tessel_status tsl_trigrid_init_like(tsl_trigrid *g, const tsl_trigrid *like);
 /* Room for this many entries (triangle-cell pairs) and cells, so that
  * inserting them neither copies the entries nor rehashes the cells. */
 tessel_status tsl_trigrid_reserve(tsl_trigrid *g, size_t entries, size_t cells);
 tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3],
                                  const double hi[3]);
 /* Triangle ids whose cells meet the box [lo, hi], each once, into
- * g->found[0 .. g->found_count). Not thread-safe (scratch in g). */
+ * g->hits.found[0 .. g->hits.count). Not thread-safe (scratch in g). */
 tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3]);
+/* Empties g, keeping its memory. */
+void tsl_trigrid_clear(tsl_trigrid *g);
 void tsl_trigrid_free(tsl_trigrid *g);
 /* Whether the cells of box [lo, hi] are among those of [olo, ohi] (a
  * triangle listed for the latter needs no listing for the former). */
 bool tsl_trigrid_covers(const tsl_trigrid *g, const double olo[3], const double ohi[3],
                         const double lo[3], const double hi[3]);
-/* An empty grid with the cells of like (same origin and cell). */
-tessel_status tsl_trigrid_init_like(tsl_trigrid *g, const tsl_trigrid *like);
-/* Empties g, keeping its memory. */
-void tsl_trigrid_clear(tsl_trigrid *g);
-/* A query's result with its own scratch, so that several threads can
- * query one grid at once (tsl_trigrid_query keeps its scratch in the grid):
- * tsl_trigrid_hits_begin starts a result for ids below id_end, and each
- * tsl_trigrid_collect adds the ids listed in the cells of g that meet
- * [lo, hi] (g only read), each id once per result. */
-typedef struct tsl_trigrid_hits {
-    uint32_t *stamp;
-    size_t stamp_cap;
-    uint32_t stamp_now;
-    uint32_t *found;
-    size_t count;
-} tsl_trigrid_hits;
 tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h, size_t id_end);
 void tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
                          tsl_trigrid_hits *h);
