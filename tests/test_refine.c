@@ -658,10 +658,63 @@ done:
     free(two);
 }
 
+/* The same on an open, wavy sheet (border edges) with one column of
+ * quads stretched twentyfold: their long triangles go to the serial tail,
+ * and the flips near them must still agree for one and two threads, leave
+ * the border as it was and make no crossing. */
+static void test_flip_blocks_tail(void)
+{
+    enum { NX = 160, NY = 160 };
+    size_t nv = (size_t)NX * NY, nt = 2 * (size_t)(NX - 1) * (NY - 1);
+    float *xyz = malloc(3 * nv * sizeof *xyz);
+    uint32_t *tri = malloc(3 * nt * sizeof *tri), *two = malloc(3 * nt * sizeof *two);
+    CHECK(xyz && tri && two);
+    if (!xyz || !tri || !two)
+        goto done;
+    surf_rng seed = surf_seed(11);
+    for (int j = 0; j < NY; j++)
+        for (int i = 0; i < NX; i++) {
+            /* Column 80 onwards starts 20 units later: quads 79 are long. */
+            double x = i + 0.3 * (surf_uniform(&seed) - 0.5) + (i >= NX / 2 ? 19.0 : 0.0);
+            double y = j + 0.3 * (surf_uniform(&seed) - 0.5);
+            float *p = xyz + 3 * ((size_t)j * NX + (size_t)i);
+            p[0] = (float)x, p[1] = (float)y, p[2] = (float)(0.5 * sin(0.1 * x) * cos(0.13 * y));
+        }
+    size_t t = 0;
+    for (int j = 0; j + 1 < NY; j++)
+        for (int i = 0; i + 1 < NX; i++) {
+            uint32_t a = (uint32_t)(j * NX + i), b = a + 1, c = a + NX + 1, d = a + NX;
+            const uint32_t one[6] = {a, b, c, a, c, d}, other[6] = {a, b, d, b, c, d};
+            memcpy(tri + 3 * t, surf_uniform(&seed) < 0.5 ? one : other, sizeof one);
+            t += 2;
+        }
+    tessel_mesh m;
+    memset(&m, 0, sizeof m);
+    m.xyz = xyz, m.vertex_count = nv, m.triangles = tri, m.triangle_count = nt;
+    tessel_mesh_report before = check(&m);
+    memcpy(two, tri, 3 * nt * sizeof *tri);
+    size_t flips1 = 0, flips2 = 0;
+    CHECK(tsl_flip_diagonals(xyz, nv, tri, nt, 1, &flips1) == TESSEL_OK);
+    CHECK(tsl_flip_diagonals(xyz, nv, two, nt, 2, &flips2) == TESSEL_OK);
+    CHECK_MSG(flips1 > 1000 && flips1 == flips2 && memcmp(tri, two, 3 * nt * sizeof *tri) == 0,
+              "%zu and %zu flips", flips1, flips2);
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(tessel_mesh_report_valid(&before) && tessel_mesh_report_valid(&r) &&
+                  r.self_intersections == 0 && r.boundary_edges == before.boundary_edges &&
+                  r.components == 1,
+              "%zu boundary edges (%zu before), %zu self-intersections, %zu components",
+              r.boundary_edges, before.boundary_edges, r.self_intersections, r.components);
+done:
+    free(xyz);
+    free(tri);
+    free(two);
+}
+
 int main(void)
 {
     test_flip_diagonals();
     test_flip_blocks();
+    test_flip_blocks_tail();
     test_refine_sphere();
     test_refine_rounds();
     test_refine_plane();
