@@ -259,9 +259,9 @@ tessel_status tsl_gp_guard_ready(gp *g)
             for (uint32_t y = q0[1]; y <= q1[1]; y++)
                 for (uint32_t x = q0[0]; x <= q1[0]; x++) {
                     size_t h = cells_find(&g->sg, lg_key(x, y, z));
-                    if (!g->sg.keys[h])
+                    if (!g->sg.slot[h].key)
                         continue;
-                    for (uint32_t t = g->sg.head[h]; t != NONE; t = g->tsg_next[t])
+                    for (uint32_t t = g->sg.slot[h].head; t != NONE; t = g->tsg_next[t])
                         if (box_meets(g, &c, t) && (s = guard_consider(g, &c, t)) != TESSEL_OK)
                             return s;
                 }
@@ -275,9 +275,9 @@ tessel_status tsl_gp_guard_ready(gp *g)
         for (uint32_t y = c0[1]; y <= c1[1]; y++)
             for (uint32_t x = c0[0]; x <= c1[0]; x++) {
                 size_t h = cells_find(&g->lg, lg_key(x, y, z));
-                if (!g->lg.keys[h])
+                if (!g->lg.slot[h].key)
                     continue;
-                for (uint32_t e = g->lg.head[h]; e != NONE; e = g->lt_next[e]) {
+                for (uint32_t e = g->lg.slot[h].head; e != NONE; e = g->lt_next[e]) {
                     uint32_t t = g->lt_tri[e];
                     if (g->tstamp[t] == g->stamp)
                         continue;

@@ -115,9 +115,15 @@ typedef struct gp_cone {
 /* A hashed grid of cells, each the head of a list whose links live
  * elsewhere: open addressing on the cell key + 1 (0 marks an empty slot).
  * Used for the long and the short triangles (greedy_store.c keeps it). */
+/* A cell's key (+ 1; 0 = empty slot) and the head of its list, together:
+ * a lookup reads one cache line, not one in each of two arrays. */
+typedef struct gp_slot {
+    uint64_t key;
+    uint32_t head;
+} gp_slot;
+
 typedef struct gp_cells {
-    uint64_t *keys;
-    uint32_t *head;
+    gp_slot *slot;
     size_t slots, used;
 } gp_cells;
 
@@ -331,9 +337,11 @@ static inline uint64_t lg_key(uint32_t x, uint32_t y, uint32_t z)
     return ((uint64_t)x << 42) | ((uint64_t)y << 21) | (uint64_t)z;
 }
 
-static inline size_t hg_find(const uint64_t *keys, size_t slots, uint64_t key)
+/* Slot of the cell with this key: its own, or the empty one it would take
+ * (the table must have slots). */
+static inline size_t cells_find(const gp_cells *c, uint64_t key)
 {
-    size_t mask = slots - 1;
+    size_t mask = c->slots - 1;
     /* Full 64-bit mix: a bare multiply leaves the low bits blind to x (the
      * top field): cells differing in x collided, long probe runs on scans. */
     uint64_t k = key ^ (key >> 31);
@@ -342,16 +350,9 @@ static inline size_t hg_find(const uint64_t *keys, size_t slots, uint64_t key)
     k *= 0xBF58476D1CE4E5B9ull;
     k ^= k >> 32;
     size_t h = (size_t)k & mask;
-    while (keys[h] && keys[h] != key + 1)
+    while (c->slot[h].key && c->slot[h].key != key + 1)
         h = (h + 1) & mask;
     return h;
-}
-
-/* Slot of the cell with this key: its own, or the empty one it would take
- * (the table must have slots). */
-static inline size_t cells_find(const gp_cells *c, uint64_t key)
-{
-    return hg_find(c->keys, c->slots, key);
 }
 
 static inline uint32_t sg_coord(const gp *g, double x, int k)

@@ -373,27 +373,20 @@ static tessel_status cells_rebuild(gp_cells *c)
 {
     size_t live = 0;
     for (size_t i = 0; i < c->slots; i++)
-        live += c->keys[i] && c->head[i] != NONE;
+        live += c->slot[i].key && c->slot[i].head != NONE;
     size_t slots = 1024;
     while (slots < 4 * (live + 1))
         slots *= 2;
-    gp_cells n = {tsl_calloc_array(slots, sizeof *n.keys),
-                  tsl_alloc_array(slots, sizeof *n.head), slots, 0};
-    if (!n.keys || !n.head) {
-        free(n.keys);
-        free(n.head);
+    gp_cells n = {tsl_calloc_array(slots, sizeof *n.slot), slots, 0};
+    if (!n.slot)
         return TESSEL_ERR_NOMEM;
-    }
     for (size_t i = 0; i < c->slots; i++) {
-        if (!c->keys[i] || c->head[i] == NONE)
+        if (!c->slot[i].key || c->slot[i].head == NONE)
             continue;
-        size_t h = cells_find(&n, c->keys[i] - 1);
-        n.keys[h] = c->keys[i];
-        n.head[h] = c->head[i];
+        n.slot[cells_find(&n, c->slot[i].key - 1)] = c->slot[i];
         n.used++;
     }
-    free(c->keys);
-    free(c->head);
+    free(c->slot);
     *c = n;
     return TESSEL_OK;
 }
@@ -406,9 +399,9 @@ static tessel_status cells_slot(gp_cells *c, uint64_t key, size_t *slot)
     if (2 * (c->used + 1) > c->slots && (s = cells_rebuild(c)) != TESSEL_OK)
         return s;
     size_t h = cells_find(c, key);
-    if (!c->keys[h]) {
-        c->keys[h] = key + 1;
-        c->head[h] = NONE;
+    if (!c->slot[h].key) {
+        c->slot[h].key = key + 1;
+        c->slot[h].head = NONE;
         c->used++;
     }
     *slot = h;
@@ -417,8 +410,7 @@ static tessel_status cells_slot(gp_cells *c, uint64_t key, size_t *slot)
 
 static void cells_free(gp_cells *c)
 {
-    free(c->keys);
-    free(c->head);
+    free(c->slot);
     memset(c, 0, sizeof *c);
 }
 
@@ -468,8 +460,8 @@ static tessel_status long_register(gp *g, uint32_t t)
                     e = (uint32_t)g->lt_used++;
                 }
                 g->lt_tri[e] = t;
-                g->lt_next[e] = g->lg.head[h];
-                g->lg.head[h] = e;
+                g->lt_next[e] = g->lg.slot[h].head;
+                g->lg.slot[h].head = e;
             }
     return TESSEL_OK;
 }
@@ -484,9 +476,9 @@ static void long_unregister(gp *g, uint32_t t)
         for (uint32_t y = c0[1]; y <= c1[1]; y++)
             for (uint32_t x = c0[0]; x <= c1[0]; x++) {
                 size_t h = cells_find(&g->lg, lg_key(x, y, z));
-                if (!g->lg.keys[h])
+                if (!g->lg.slot[h].key)
                     continue;
-                uint32_t *link = &g->lg.head[h];
+                uint32_t *link = &g->lg.slot[h].head;
                 while (*link != NONE && g->lt_tri[*link] != t)
                     link = &g->lt_next[*link];
                 if (*link != NONE) {
@@ -519,15 +511,15 @@ static tessel_status short_register(gp *g, uint32_t t)
     tessel_status s = cells_slot(&g->sg, short_key(g, t), &h);
     if (s != TESSEL_OK)
         return s;
-    g->tsg_next[t] = g->sg.head[h];
-    g->sg.head[h] = t;
+    g->tsg_next[t] = g->sg.slot[h].head;
+    g->sg.slot[h].head = t;
     return TESSEL_OK;
 }
 
 static void short_unregister(gp *g, uint32_t t)
 {
     size_t h = cells_find(&g->sg, short_key(g, t));
-    uint32_t *link = &g->sg.head[h];
+    uint32_t *link = &g->sg.slot[h].head;
     while (*link != t)
         link = &g->tsg_next[*link];
     *link = g->tsg_next[t];
