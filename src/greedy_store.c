@@ -873,25 +873,45 @@ static inline uint32_t depth_key(float f)
 }
 
 /* Seed order: dexel indices by increasing depth (LSD radix sort, stable;
- * g->queue serves as scratch). */
-static void order_seeds(gp *g)
+ * g->queue serves as scratch). The keys travel with the indices, so no
+ * pass reads the points through the permutation (on the 10^6 sphere that
+ * was 6.3 M cache misses of 33 M in the whole front). */
+static tessel_status order_seeds(gp *g)
 {
     uint32_t *a = g->seed_order, *b = g->queue;
-    for (size_t i = 0; i < g->n; i++)
+    uint32_t *ka = tsl_alloc_array(g->n ? g->n : 1, sizeof *ka);
+    uint32_t *kb = tsl_alloc_array(g->n ? g->n : 1, sizeof *kb);
+    if (!ka || !kb) {
+        free(ka);
+        free(kb);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t i = 0; i < g->n; i++) {
         a[i] = (uint32_t)i;
+        ka[i] = depth_key(g->xyz[3 * i + g->ad]);
+    }
     for (int shift = 0; shift < 32; shift += 8) {
         size_t count[257] = {0};
         for (size_t i = 0; i < g->n; i++)
-            count[((depth_key(g->xyz[3 * (size_t)a[i] + g->ad]) >> shift) & 255) + 1]++;
+            count[((ka[i] >> shift) & 255) + 1]++;
         for (int k = 0; k < 256; k++)
             count[k + 1] += count[k];
-        for (size_t i = 0; i < g->n; i++)
-            b[count[(depth_key(g->xyz[3 * (size_t)a[i] + g->ad]) >> shift) & 255]++] = a[i];
+        for (size_t i = 0; i < g->n; i++) {
+            size_t to = count[(ka[i] >> shift) & 255]++;
+            b[to] = a[i];
+            kb[to] = ka[i];
+        }
         uint32_t *t = a;
         a = b;
         b = t;
+        t = ka;
+        ka = kb;
+        kb = t;
     }
     /* Four passes: the result is back in seed_order. */
+    free(ka);
+    free(kb);
+    return TESSEL_OK;
 }
 
 /* Mean distance to the nearest other point, on an even sample. */
@@ -1131,6 +1151,5 @@ tessel_status tsl_gp_init(gp *g)
     g->rho_cap = g->mu * g->m_cap;
     if ((s = init_blocks(g, ext, 2.0 * g->rho_cap + g->ell)) != TESSEL_OK)
         return s;
-    order_seeds(g);
-    return TESSEL_OK;
+    return order_seeds(g);
 }
