@@ -370,10 +370,8 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
 
 tessel_status tsl_trigrid_query(tsl_trigrid *g, const double lo[3], const double hi[3])
 {
-    tessel_status st = tsl_trigrid_hits_begin(&g->hits, g->id_end);
-    if (st == TESSEL_OK)
-        tsl_trigrid_collect(g, lo, hi, &g->hits);
-    return st;
+    tessel_status st = tsl_trigrid_hits_begin(&g->hits);
+    return st ? st : tsl_trigrid_collect(g, lo, hi, &g->hits);
 }
 
 bool tsl_trigrid_covers(const tsl_trigrid *g, const double olo[3], const double ohi[3],
@@ -394,38 +392,68 @@ void tsl_trigrid_clear(tsl_trigrid *g)
     g->entries = 0;
 }
 
-tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h, size_t id_end)
+#define HITS_MIN 256
+
+static inline size_t seen_slot(uint32_t t, size_t cap)
+{
+    return (size_t)((uint32_t)(t * 2654435761u) ^ (t >> 15)) & (cap - 1);
+}
+
+/* Whether t is in the result already; if not, records it in the set. */
+static inline bool seen_add(tsl_trigrid_hits *h, uint32_t t)
+{
+    uint64_t mark = (uint64_t)h->now << 32;
+    size_t s = seen_slot(t, h->seen_cap);
+    while ((h->seen[s] & ~(uint64_t)UINT32_MAX) == mark) {
+        if ((uint32_t)h->seen[s] == t)
+            return true;
+        s = (s + 1) & (h->seen_cap - 1);
+    }
+    h->seen[s] = mark | t;
+    return false;
+}
+
+/* A set of twice the capacity holding the result's ids. */
+static tessel_status seen_grow(tsl_trigrid_hits *h)
+{
+    size_t cap = 2 * h->seen_cap;
+    uint64_t *seen = tsl_calloc_array(cap, sizeof *seen);
+    if (!seen)
+        return TESSEL_ERR_NOMEM;
+    free(h->seen);
+    h->seen = seen;
+    h->seen_cap = cap;
+    h->now = 1;
+    for (size_t i = 0; i < h->count; i++)
+        seen_add(h, h->found[i]);
+    return TESSEL_OK;
+}
+
+tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h)
 {
     h->count = 0;
-    if (id_end > h->stamp_cap) {
-        /* Doubling: the refinement's splits add ids one by one. */
-        size_t cap = id_end > 2 * h->stamp_cap ? id_end : 2 * h->stamp_cap;
-        uint32_t *stamp = tsl_calloc_array(cap, sizeof *stamp);
-        uint32_t *found = tsl_alloc_array(cap, sizeof *found);
-        if (!stamp || !found) {
-            free(stamp);
-            free(found);
+    if (!h->seen) {
+        h->seen = tsl_calloc_array(HITS_MIN, sizeof *h->seen);
+        h->found = tsl_alloc_array(HITS_MIN, sizeof *h->found);
+        if (!h->seen || !h->found) {
+            tsl_trigrid_hits_free(h);
             return TESSEL_ERR_NOMEM;
         }
-        free(h->stamp);
-        free(h->found);
-        h->stamp = stamp;
-        h->found = found;
-        h->stamp_cap = cap;
-        h->stamp_now = 0;
+        h->seen_cap = h->found_cap = HITS_MIN;
+        h->now = 0;
     }
-    if (++h->stamp_now == 0) {
-        memset(h->stamp, 0, h->stamp_cap * sizeof *h->stamp);
-        h->stamp_now = 1;
+    if (++h->now == 0) {
+        memset(h->seen, 0, h->seen_cap * sizeof *h->seen);
+        h->now = 1;
     }
     return TESSEL_OK;
 }
 
-void tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
-                         tsl_trigrid_hits *h)
+tessel_status tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
+                                  tsl_trigrid_hits *h)
 {
     if (!g->used)
-        return;
+        return TESSEL_OK;
     int32_t c0[3], c1[3];
     for (int i = 0; i < 3; i++) {
         c0[i] = grid_coord(g, lo[i], i);
@@ -442,17 +470,23 @@ void tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double 
                     continue;
                 for (uint32_t ent = g->heads[s]; ent != NONE; ent = g->ent_next[ent]) {
                     uint32_t t = g->ent_tri[ent];
-                    if (t >= h->stamp_cap || h->stamp[t] == h->stamp_now)
+                    if (seen_add(h, t))
                         continue;
-                    h->stamp[t] = h->stamp_now;
+                    if (h->count == h->found_cap &&
+                        tsl_grow((void **)&h->found, &h->found_cap, h->count + 1,
+                                 sizeof *h->found))
+                        return TESSEL_ERR_NOMEM;
                     h->found[h->count++] = t;
+                    if (2 * h->count > h->seen_cap && seen_grow(h))
+                        return TESSEL_ERR_NOMEM;
                 }
             }
+    return TESSEL_OK;
 }
 
 void tsl_trigrid_hits_free(tsl_trigrid_hits *h)
 {
-    free(h->stamp);
+    free(h->seen);
     free(h->found);
     memset(h, 0, sizeof *h);
 }

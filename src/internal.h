@@ -128,16 +128,18 @@ double tsl_orient3d(const double a[3], const double b[3], const double c[3],
  * query returns a superset of the triangles whose boxes meet the box. */
 
 /* A query's result with its own scratch, so that several threads can
- * query one grid at once: tsl_trigrid_hits_begin starts a result for ids
- * below id_end, and each tsl_trigrid_collect adds the ids listed in the
- * cells of a grid that meet [lo, hi] (the grid only read), each id once
- * per result, into found[0 .. count). */
+ * query one grid at once: tsl_trigrid_hits_begin starts a result, and each
+ * tsl_trigrid_collect adds the ids listed in the cells of a grid that meet
+ * [lo, hi] (the grid only read), each id once per result, into
+ * found[0 .. count). The ids seen are kept in a small hash set stamped
+ * with the result's number (a query finds tens of triangles; a stamp per
+ * triangle id would be a cache miss each on large meshes). */
 typedef struct tsl_trigrid_hits {
-    uint32_t *stamp; /* per triangle id: the last result that has it */
-    size_t stamp_cap;
-    uint32_t stamp_now;
+    uint64_t *seen; /* slots: result number << 32 | id */
+    size_t seen_cap; /* a power of two, at least twice count */
+    uint32_t now;
     uint32_t *found;
-    size_t count;
+    size_t count, found_cap;
 } tsl_trigrid_hits;
 
 typedef struct tsl_trigrid {
@@ -172,9 +174,9 @@ void tsl_trigrid_free(tsl_trigrid *g);
  * triangle listed for the latter needs no listing for the former). */
 bool tsl_trigrid_covers(const tsl_trigrid *g, const double olo[3], const double ohi[3],
                         const double lo[3], const double hi[3]);
-tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h, size_t id_end);
-void tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
-                         tsl_trigrid_hits *h);
+tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h);
+tessel_status tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
+                                  tsl_trigrid_hits *h);
 void tsl_trigrid_hits_free(tsl_trigrid_hits *h);
 
 /* The corners of each vertex: corner[start[v] .. start[v + 1]) are the

@@ -416,12 +416,13 @@ static tessel_status check_news(const rf *r, worker *w, const uint32_t *news, in
         for (int b = a + 1; b < count; b++)
             if (meets(&nt[a], nt[b].v, (const double(*)[3])nt[b].p))
                 return TESSEL_OK;
-    tessel_status st = tsl_trigrid_hits_begin(&w->hits, r->nt);
+    tessel_status st = tsl_trigrid_hits_begin(&w->hits);
+    if (!st)
+        st = tsl_trigrid_collect(&r->grid, lo, hi, &w->hits);
+    if (!st && w->parallel)
+        st = tsl_trigrid_collect(&w->overlay, lo, hi, &w->hits);
     if (st)
         return st;
-    tsl_trigrid_collect(&r->grid, lo, hi, &w->hits);
-    if (w->parallel)
-        tsl_trigrid_collect(&w->overlay, lo, hi, &w->hits);
     for (size_t i = 0; i < w->hits.count; i++) {
         uint32_t e = w->hits.found[i];
         if (e >= r->nt)
