@@ -308,6 +308,19 @@ static tessel_status grid_rehash(tsl_trigrid *g, size_t slots)
     return TESSEL_OK;
 }
 
+/* Room for this many entries in both entry arrays. */
+static tessel_status ent_reserve(tsl_trigrid *g, size_t entries)
+{
+    if (entries <= g->ent_cap)
+        return TESSEL_OK;
+    size_t cap = g->ent_cap, cap2 = g->ent_cap;
+    if (tsl_grow((void **)&g->ent_tri, &cap, entries, sizeof *g->ent_tri) ||
+        tsl_grow((void **)&g->ent_next, &cap2, entries, sizeof *g->ent_next))
+        return TESSEL_ERR_NOMEM;
+    g->ent_cap = cap < cap2 ? cap : cap2;
+    return TESSEL_OK;
+}
+
 tessel_status tsl_trigrid_reserve(tsl_trigrid *g, size_t entries, size_t cells)
 {
     size_t slots = g->slots;
@@ -315,14 +328,7 @@ tessel_status tsl_trigrid_reserve(tsl_trigrid *g, size_t entries, size_t cells)
         slots *= 2;
     if (slots > g->slots && grid_rehash(g, slots))
         return TESSEL_ERR_NOMEM;
-    if (entries > g->ent_cap) {
-        size_t cap = g->ent_cap, cap2 = g->ent_cap;
-        if (tsl_grow((void **)&g->ent_tri, &cap, entries, sizeof *g->ent_tri) ||
-            tsl_grow((void **)&g->ent_next, &cap2, entries, sizeof *g->ent_next))
-            return TESSEL_ERR_NOMEM;
-        g->ent_cap = cap < cap2 ? cap : cap2;
-    }
-    return TESSEL_OK;
+    return ent_reserve(g, entries);
 }
 
 tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3],
@@ -340,16 +346,8 @@ tessel_status tsl_trigrid_insert(tsl_trigrid *g, uint32_t tri, const double lo[3
             for (int32_t z = c0[2]; z <= c1[2]; z++) {
                 if ((g->used + 1) * 2 > g->slots && grid_rehash(g, 2 * g->slots))
                     return TESSEL_ERR_NOMEM;
-                if (g->entries + 1 > g->ent_cap) {
-                    size_t cap = g->ent_cap;
-                    if (tsl_grow((void **)&g->ent_tri, &cap, g->entries + 1,
-                                 sizeof *g->ent_tri))
-                        return TESSEL_ERR_NOMEM;
-                    size_t cap2 = g->ent_cap;
-                    if (tsl_grow((void **)&g->ent_next, &cap2, cap, sizeof *g->ent_next))
-                        return TESSEL_ERR_NOMEM;
-                    g->ent_cap = cap < cap2 ? cap : cap2;
-                }
+                if (ent_reserve(g, g->entries + 1))
+                    return TESSEL_ERR_NOMEM;
                 uint64_t key = grid_key(x, y, z);
                 size_t s = grid_slot(g, key);
                 while (g->keys[s] && g->keys[s] != key)
