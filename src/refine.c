@@ -48,10 +48,15 @@ tessel_refine_params tessel_refine_params_default(void)
 }
 
 /* Open-addressing map from an undirected edge to one of its half-edges,
- * with backward-shift deletion. */
+ * with backward-shift deletion. A slot holds key and value together: a
+ * lookup that misses the cache costs one line, not two. */
+typedef struct edge_slot {
+    uint64_t key; /* (min << 32 | max) + 1; 0 = empty */
+    uint32_t val;
+} edge_slot;
+
 typedef struct edge_map {
-    uint64_t *keys; /* (min << 32 | max) + 1; 0 = empty */
-    uint32_t *vals;
+    edge_slot *slot;
     size_t slots, count;
 } edge_map;
 
@@ -120,28 +125,30 @@ static tessel_status map_init(edge_map *m, size_t expected)
     while (m->slots < 2 * expected)
         m->slots *= 2;
     m->count = 0;
-    m->keys = tsl_calloc_array(m->slots, sizeof *m->keys);
-    m->vals = tsl_alloc_array(m->slots, sizeof *m->vals);
-    return m->keys && m->vals ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    m->slot = tsl_calloc_array(m->slots, sizeof *m->slot);
+    return m->slot ? TESSEL_OK : TESSEL_ERR_NOMEM;
 }
 
 static void map_free(edge_map *m)
 {
-    free(m->keys);
-    free(m->vals);
+    free(m->slot);
     memset(m, 0, sizeof *m);
 }
 
 static uint32_t map_get(const edge_map *m, uint32_t a, uint32_t b)
 {
     uint64_t key = edge_key(a, b);
-    for (size_t s = map_slot(m, key); m->keys[s]; s = (s + 1) & (m->slots - 1))
-        if (m->keys[s] == key)
-            return m->vals[s];
+    for (size_t s = map_slot(m, key); m->slot[s].key; s = (s + 1) & (m->slots - 1))
+        if (m->slot[s].key == key)
+            return m->slot[s].val;
     return NONE;
 }
 
-static tessel_status map_put(edge_map *m, uint32_t a, uint32_t b, uint32_t he);
+/* Asks for the line of {a, b}'s home slot ahead of a map_get. */
+static inline void map_prefetch(const edge_map *m, uint32_t a, uint32_t b)
+{
+    __builtin_prefetch(&m->slot[map_slot(m, edge_key(a, b))]);
+}
 
 static tessel_status map_grow(edge_map *m)
 {
@@ -152,13 +159,11 @@ static tessel_status map_grow(edge_map *m)
         return st;
     }
     for (size_t s = 0; s < m->slots; s++)
-        if (m->keys[s]) {
-            uint64_t key = m->keys[s];
-            size_t t = map_slot(&bigger, key);
-            while (bigger.keys[t])
+        if (m->slot[s].key) {
+            size_t t = map_slot(&bigger, m->slot[s].key);
+            while (bigger.slot[t].key)
                 t = (t + 1) & (bigger.slots - 1);
-            bigger.keys[t] = key;
-            bigger.vals[t] = m->vals[s];
+            bigger.slot[t] = m->slot[s];
             bigger.count++;
         }
     map_free(m);
@@ -176,13 +181,13 @@ static tessel_status map_put(edge_map *m, uint32_t a, uint32_t b, uint32_t he)
     }
     uint64_t key = edge_key(a, b);
     size_t s = map_slot(m, key);
-    while (m->keys[s] && m->keys[s] != key)
+    while (m->slot[s].key && m->slot[s].key != key)
         s = (s + 1) & (m->slots - 1);
-    if (!m->keys[s]) {
-        m->keys[s] = key;
+    if (!m->slot[s].key) {
+        m->slot[s].key = key;
         m->count++;
     }
-    m->vals[s] = he;
+    m->slot[s].val = he;
     return TESSEL_OK;
 }
 
@@ -190,22 +195,21 @@ static void map_del(edge_map *m, uint32_t a, uint32_t b)
 {
     uint64_t key = edge_key(a, b);
     size_t s = map_slot(m, key);
-    while (m->keys[s] && m->keys[s] != key)
+    while (m->slot[s].key && m->slot[s].key != key)
         s = (s + 1) & (m->slots - 1);
-    if (!m->keys[s])
+    if (!m->slot[s].key)
         return;
     /* Backward shift: pull later entries of the probe run into the gap. */
     size_t gap = s;
-    for (size_t j = (gap + 1) & (m->slots - 1); m->keys[j]; j = (j + 1) & (m->slots - 1)) {
-        size_t home = map_slot(m, m->keys[j]);
+    for (size_t j = (gap + 1) & (m->slots - 1); m->slot[j].key; j = (j + 1) & (m->slots - 1)) {
+        size_t home = map_slot(m, m->slot[j].key);
         bool movable = gap <= j ? (home <= gap || home > j) : (home <= gap && home > j);
         if (movable) {
-            m->keys[gap] = m->keys[j];
-            m->vals[gap] = m->vals[j];
+            m->slot[gap] = m->slot[j];
             gap = j;
         }
     }
-    m->keys[gap] = 0;
+    m->slot[gap].key = 0;
     m->count--;
 }
 
@@ -543,7 +547,7 @@ static bool corners_valid(const rf *r)
 static tessel_status build_topology(rf *r)
 {
     size_t nh = 3 * r->nt;
-    tessel_status st = map_init(&r->edges, nh);
+    tessel_status st = map_init(&r->edges, nh / 2 + 1); /* edges: about half the half-edges */
     if (st)
         return st;
     if (!corners_valid(r))
@@ -907,7 +911,7 @@ static tessel_status flip_edge(rf *r, worker *w, uint32_t h, bool *done, bool *a
                     : !other_diagonal_shorter(pu, pv, pa, pb))
         return TESSEL_OK;
     *again = true;
-    if (r->edges.keys && !w->parallel ? map_get(&r->edges, a, b) != NONE
+    if (r->edges.slot && !w->parallel ? map_get(&r->edges, a, b) != NONE
                                       : edge_exists(r, 3 * T1 + (i + 2) % 3, b))
         return TESSEL_OK;
     double n1[3], n2[3], avg[3];
@@ -956,7 +960,7 @@ static tessel_status flip_edge(rf *r, worker *w, uint32_t h, bool *done, bool *a
         for (int k = 0; k < 6; k++)
             if (!push(&w->log, &w->nlog, &w->cap_log, rec[k]))
                 return TESSEL_ERR_NOMEM;
-    } else if (r->edges.keys) {
+    } else if (r->edges.slot) {
         map_del(&r->edges, u, v);
         if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) ||
             (st = map_put(&r->edges, u, b, 3 * T1)) ||
@@ -1140,7 +1144,7 @@ static tessel_status merge_phase(rf *r, worker *ws, int nw, uint8_t *look, uint3
             const uint32_t *x = w->log + f;
             const uint32_t top = (uint32_t)1 << 31;
             uint32_t T1 = x[0] & ~top, T2 = x[1] & ~top, u = x[2], v = x[3], a = x[4], b = x[5];
-            if (r->edges.keys) {
+            if (r->edges.slot) {
                 map_del(&r->edges, u, v);
                 if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) ||
                     (st = map_put(&r->edges, u, b, 3 * T1)) ||
@@ -1409,6 +1413,10 @@ typedef struct round_ctx {
     int threads;
 } round_ctx;
 
+/* How many edges ahead the fits ask for the previous round's fit: the
+ * lookups land anywhere in a map of megabytes. */
+#define FIT_AHEAD 8
+
 /* Bits per axis of the cells that order the edges' neighbour searches. */
 #define ORDER_BITS 6
 
@@ -1518,6 +1526,10 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
         if (!tsl_normalize(nm))
             continue;
         float *ws = sum + 3 * ii;
+        if (r->fit_sum && oo + FIT_AHEAD < count) {
+            const split_job *ahead = &jobs[order[oo + FIT_AHEAD]];
+            map_prefetch(&r->fit_of, ahead->u, ahead->v);
+        }
         uint32_t known = r->fit_sum ? map_get(&r->fit_of, jb->u, jb->v) : NONE;
         if (known != NONE) {
             memcpy(ws, r->fit_sum + 3 * (size_t)known, 3 * sizeof *ws);
