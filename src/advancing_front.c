@@ -1686,6 +1686,22 @@ static int cmp_xyz(const void *pa, const void *pb)
     return a->id < b->id ? -1 : (a->id > b->id);
 }
 
+/* Unit normal of the least-squares plane of a neighbourhood with
+ * covariance cov (3 x 3): the smallest eigenvalue's eigenvector, without
+ * rotations when that eigenvalue stands apart from the middle one (the
+ * usual case), else Jacobi's. False when it is not defined. */
+static bool plane_normal(const double cov[9], double n[3])
+{
+    const double m[6] = {cov[0], cov[1], cov[2], cov[4], cov[5], cov[8]};
+    double l[3];
+    if (tsl_sym3_values(m, l) && l[1] - l[0] >= 1e-4 * l[2] && tsl_sym3_vector(m, l[0], n))
+        return true;
+    double w[3], v[9];
+    tsl_eigen_sym3(cov, w, v);
+    n[0] = v[0], n[1] = v[3], n[2] = v[6];
+    return tsl_normalize(n);
+}
+
 /* Exact duplicates (a point equal to one with a smaller index) are marked
  * and left out of the neighbour search, so that they neither use up the k
  * neighbours of their surroundings nor ever become vertices. For the other
@@ -1791,10 +1807,8 @@ static tessel_status prepare_neighbours(af *s, int threads)
                 for (int c = 0; c < 3; c++)
                     cov[3 * r + c] += d[r] * d[c];
         }
-        double w[3], v[9];
-        tsl_eigen_sym3(cov, w, v);
-        double nrm[3] = {v[0], v[3], v[6]};
-        if (!tsl_normalize(nrm)) {
+        double nrm[3];
+        if (!plane_normal(cov, nrm)) {
             nrm[0] = 0.0;
             nrm[1] = 0.0;
             nrm[2] = 1.0;

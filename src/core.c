@@ -321,3 +321,56 @@ void tsl_eigen_sym3(const double a_in[9], double w[3], double v[9])
         }
     }
 }
+
+bool tsl_sym3_values(const double m[6], double l[3])
+{
+    double a00 = m[0], a01 = m[1], a02 = m[2], a11 = m[3], a12 = m[4], a22 = m[5];
+    /* det(l I - m) = l^3 - tr l^2 + mi l - det */
+    double tr = a00 + a11 + a22;
+    double mi = a00 * a11 - a01 * a01 + a00 * a22 - a02 * a02 + a11 * a22 - a12 * a12;
+    double det = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) +
+                 a02 * (a01 * a12 - a11 * a02);
+    if (!(tr > 0.0))
+        return false;
+    double l1 = 0.0;
+    for (int it = 0; it < 100; it++) {
+        double f = ((l1 - tr) * l1 + mi) * l1 - det;
+        double df = (3.0 * l1 - 2.0 * tr) * l1 + mi;
+        if (!(df > 0.0) || !(f < 0.0))
+            break; /* at (or, by rounding, past) the root */
+        double step = -f / df;
+        l1 += step;
+        if (step <= 1e-15 * tr)
+            break;
+    }
+    /* l2, l3: roots of l^2 - (tr - l1) l + (mi - l1 (tr - l1)) */
+    double bq = tr - l1, cq = mi - l1 * bq;
+    double disc = bq * bq - 4.0 * cq;
+    double sq = sqrt(disc > 0.0 ? disc : 0.0);
+    double l3 = 0.5 * (bq + sq);
+    l[0] = l1;
+    l[1] = l3 > 0.0 ? cq / l3 : 0.0;
+    l[2] = l3;
+    return true;
+}
+
+bool tsl_sym3_vector(const double m[6], double l, double v[3])
+{
+    double r0[3] = {m[0] - l, m[1], m[2]}, r1[3] = {m[1], m[3] - l, m[4]};
+    double r2[3] = {m[2], m[4], m[5] - l}, c[3][3];
+    tsl_cross(r0, r1, c[0]);
+    tsl_cross(r0, r2, c[1]);
+    tsl_cross(r1, r2, c[2]);
+    int best = 0;
+    double bl = tsl_dot(c[0], c[0]);
+    for (int i = 1; i < 3; i++) {
+        double d = tsl_dot(c[i], c[i]);
+        if (d > bl)
+            bl = d, best = i;
+    }
+    if (!(bl > 0.0))
+        return false;
+    double inv = 1.0 / sqrt(bl);
+    v[0] = c[best][0] * inv, v[1] = c[best][1] * inv, v[2] = c[best][2] * inv;
+    return true;
+}

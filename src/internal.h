@@ -106,6 +106,21 @@ static inline void tsl_load(const float *p, double out[3])
  * covariances, which is where normals are decided. */
 void tsl_eigen_sym3(const double a[9], double w[3], double v[9]);
 
+/* The same for a covariance m = {a00, a01, a02, a11, a12, a22} (symmetric,
+ * positive semi-definite) without rotations, several times cheaper:
+ * tsl_sym3_values gives the eigenvalues ascending in l[3], the smallest as
+ * the smallest root of the characteristic cubic by Newton's method from 0
+ * (below every root, where Newton rises monotonically to it; cheaper than
+ * the trigonometric closed form, whose acos and cos cost more than the
+ * whole iteration), the other two from the deflated quadratic; false when
+ * the trace is not positive. tsl_sym3_vector gives a unit vector of the
+ * null space of m - l I, the longest cross product of two of its rows;
+ * false when all vanish. That vector is accurate only for an eigenvalue l
+ * well apart from the other two: callers take tsl_eigen_sym3 when the gap
+ * is under 1e-4 of the largest eigenvalue. */
+bool tsl_sym3_values(const double m[6], double l[3]);
+bool tsl_sym3_vector(const double m[6], double l, double v[3]);
+
 /* ---- robust orientation predicates (src/predicates.c, Shewchuk 1997) ----
  * The SIGN of the result is exact (filtered double evaluation, exact
  * expansion arithmetic when the filter cannot decide); the magnitude is an

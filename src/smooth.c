@@ -162,69 +162,23 @@ static void ctl_setup(fit_ctl *f, const tessel_smooth_params *p, double h, doubl
 
 /* ---- fitting ---- */
 
-/* Unit eigenvector of the smallest eigenvalue of the symmetric matrix
- * m = {a00, a01, a02, a11, a12, a22}, a covariance (positive
- * semi-definite). Returns false when no plane is defined: the two largest
- * eigenvalues are not both positive (all points on a line or at one spot).
- * The smallest eigenvalue l1 is the smallest root of the characteristic
- * cubic, found by Newton's method from 0 (below every root, where Newton
- * on this cubic rises monotonically to the smallest root; cheaper than the
- * trigonometric closed form, whose acos and cos cost more than the whole
- * iteration); the other two solve the deflated quadratic. The eigenvector
- * is the longest cross product of two rows of m - l1 I. When l1 is close
- * to l2 that vector is inaccurate, so Jacobi rotations decide instead. */
+/* Unit eigenvector of the smallest eigenvalue of the covariance m (as in
+ * tsl_sym3_values). Returns false when no plane is defined: the two
+ * largest eigenvalues are not both positive (all points on a line or at
+ * one spot). When the smallest eigenvalue is close to the middle one the
+ * cross product is inaccurate, so Jacobi rotations decide instead. */
 static bool smallest_eigenvector(const double m[6], double n[3])
 {
-    double a00 = m[0], a01 = m[1], a02 = m[2], a11 = m[3], a12 = m[4], a22 = m[5];
-    /* det(l I - m) = l^3 - tr l^2 + mi l - det */
-    double tr = a00 + a11 + a22;
-    double mi = a00 * a11 - a01 * a01 + a00 * a22 - a02 * a02 + a11 * a22 - a12 * a12;
-    double det = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) +
-                 a02 * (a01 * a12 - a11 * a02);
-    if (!(tr > 0.0))
+    double l[3];
+    if (!tsl_sym3_values(m, l) || !(l[2] > 0.0) || !(l[1] > 1e-12 * l[2]))
         return false;
-    double l1 = 0.0;
-    for (int it = 0; it < 100; it++) {
-        double f = ((l1 - tr) * l1 + mi) * l1 - det;
-        double df = (3.0 * l1 - 2.0 * tr) * l1 + mi;
-        if (!(df > 0.0) || !(f < 0.0))
-            break; /* at (or, by rounding, past) the root */
-        double step = -f / df;
-        l1 += step;
-        if (step <= 1e-15 * tr)
-            break;
-    }
-    /* l2, l3: roots of l^2 - (tr - l1) l + (mi - l1 (tr - l1)) */
-    double bq = tr - l1, cq = mi - l1 * bq;
-    double disc = bq * bq - 4.0 * cq;
-    double sq = sqrt(disc > 0.0 ? disc : 0.0);
-    double l3 = 0.5 * (bq + sq);
-    double l2 = l3 > 0.0 ? cq / l3 : 0.0;
-    if (!(l3 > 0.0) || !(l2 > 1e-12 * l3))
-        return false;
-    if (l2 - l1 < 1e-4 * l3) {
-        double a[9] = {a00, a01, a02, a01, a11, a12, a02, a12, a22}, w[3], v[9];
+    if (l[1] - l[0] < 1e-4 * l[2]) {
+        double a[9] = {m[0], m[1], m[2], m[1], m[3], m[4], m[2], m[4], m[5]}, w[3], v[9];
         tsl_eigen_sym3(a, w, v);
         n[0] = v[0], n[1] = v[3], n[2] = v[6];
         return w[2] > 0.0 && w[1] > 1e-12 * w[2];
     }
-    double r0[3] = {a00 - l1, a01, a02}, r1[3] = {a01, a11 - l1, a12};
-    double r2[3] = {a02, a12, a22 - l1}, c[3][3];
-    tsl_cross(r0, r1, c[0]);
-    tsl_cross(r0, r2, c[1]);
-    tsl_cross(r1, r2, c[2]);
-    int best = 0;
-    double bl = tsl_dot(c[0], c[0]);
-    for (int i = 1; i < 3; i++) {
-        double l = tsl_dot(c[i], c[i]);
-        if (l > bl)
-            bl = l, best = i;
-    }
-    if (!(bl > 0.0))
-        return false;
-    double inv = 1.0 / sqrt(bl);
-    n[0] = c[best][0] * inv, n[1] = c[best][1] * inv, n[2] = c[best][2] * inv;
-    return true;
+    return tsl_sym3_vector(m, l[0], n);
 }
 
 /* e^x for -80 <= x <= 0 in single precision, in a form that vectorises
