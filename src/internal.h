@@ -309,6 +309,15 @@ tessel_status tsl_representatives_with(const tessel_cloud *cloud,
                                        const tessel_callbacks *callbacks, tessel_cloud *out,
                                        tessel_simplify_stats *stats);
 
+/* ---- the noisy-cloud pipeline (src/smooth_pipeline.c) ---- */
+
+/* How many components of m are stray pieces: at most STRAY_FRACTION (1%)
+ * of its triangles each, counted only when there are at most STRAY_MAX (8)
+ * of them (else 0: a scene of many small pieces is what was sampled).
+ * *pieces (when not NULL): the other components. The pipeline's repair
+ * sends the front again around stray pieces. */
+tessel_status tsl_stray_pieces(const tessel_mesh *m, size_t *strays, size_t *pieces);
+
 /* ---- neighbour search (src/kdtree.c) ---- */
 
 /* Writes the index's count point indices in its storage order (leaf by

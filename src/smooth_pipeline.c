@@ -140,12 +140,15 @@ static tessel_status star_normals(tessel_mesh *m)
  * edges get extra representatives; longer ones are borders of the sampled
  * surface. */
 #define HOLE_MAX_EDGES 128
-
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : x > y;
-}
+/* A component with at most this fraction of the mesh's triangles is a
+ * stray piece (a thin part the front cut off and closed on both sides,
+ * the elephant's curled trunk tip): it gets extra representatives like a
+ * hole, and counts as STRAY_WEIGHT border edges when attempts are
+ * compared. Only when there are at most STRAY_MAX of them: a scene of many
+ * small pieces (a room scan) is what was sampled. */
+#define STRAY_FRACTION 0.01
+#define STRAY_WEIGHT 16
+#define STRAY_MAX 8
 
 static uint32_t uf_root(uint32_t *parent, uint32_t x)
 {
@@ -154,6 +157,97 @@ static uint32_t uf_root(uint32_t *parent, uint32_t x)
         x = parent[x];
     }
     return x;
+}
+
+/* The triangles' components (by shared vertices): comp[v] is the root
+ * vertex of v's component (for vertices on a triangle) and tris[root] its
+ * triangle count. */
+static tessel_status components(const tessel_mesh *m, uint32_t **comp, size_t **tris)
+{
+    size_t nv = m->vertex_count, nt = m->triangle_count;
+    uint32_t *parent = tsl_alloc_array(nv + 1, sizeof *parent);
+    size_t *count = tsl_calloc_array(nv + 1, sizeof *count);
+    if (!parent || !count) {
+        free(parent);
+        free(count);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t v = 0; v < nv; v++)
+        parent[v] = (uint32_t)v;
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *c = m->triangles + 3 * t;
+        uint32_t r0 = uf_root(parent, c[0]);
+        for (int i = 1; i < 3; i++) {
+            uint32_t ri = uf_root(parent, c[i]);
+            if (ri != r0)
+                parent[ri] = r0;
+        }
+    }
+    for (size_t v = 0; v < nv; v++)
+        parent[v] = uf_root(parent, (uint32_t)v);
+    for (size_t t = 0; t < nt; t++)
+        count[parent[m->triangles[3 * t]]]++;
+    *comp = parent;
+    *tris = count;
+    return TESSEL_OK;
+}
+
+/* Whether the component of root r, of `count` triangles, is a stray piece
+ * of a mesh of nt triangles (given `strays` of them in all). */
+static bool is_stray(size_t count, size_t nt, size_t strays)
+{
+    return count && (double)count <= STRAY_FRACTION * (double)nt && strays <= STRAY_MAX;
+}
+
+tessel_status tsl_stray_pieces(const tessel_mesh *m, size_t *strays, size_t *pieces)
+{
+    uint32_t *comp;
+    size_t *tris, n = 0, all = 0;
+    tessel_status st = components(m, &comp, &tris);
+    if (st)
+        return st;
+    for (size_t v = 0; v < m->vertex_count; v++) {
+        n += is_stray(tris[v], m->triangle_count, 0);
+        all += tris[v] > 0;
+    }
+    *strays = n <= STRAY_MAX ? n : 0;
+    if (pieces)
+        *pieces = all - *strays;
+    free(comp);
+    free(tris);
+    return TESSEL_OK;
+}
+
+/* What the repairs try to bring down: first the components that are not
+ * stray pieces (a front that cuts a thin part in two closes both ends, and
+ * leaves no border edge to show it), then the border edges and
+ * STRAY_WEIGHT for each stray piece. */
+typedef struct defects {
+    size_t count, pieces;
+} defects;
+
+/* Whether d is better than e (see defects). The components count only
+ * while there are few (at most STRAY_MAX): in a scene of many pieces (a
+ * room scan) an attempt that joins some of them is no better for that. */
+static bool better(const defects *d, const defects *e)
+{
+    if (d->pieces <= STRAY_MAX && e->pieces <= STRAY_MAX && d->pieces != e->pieces)
+        return d->pieces < e->pieces;
+    return d->count < e->count;
+}
+
+static tessel_status defects_of(const tessel_mesh *m, const tessel_front_stats *fs, defects *d)
+{
+    size_t strays;
+    tessel_status st = tsl_stray_pieces(m, &strays, &d->pieces);
+    d->count = fs->border_edges + STRAY_WEIGHT * strays;
+    return st;
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
 }
 
 /* Sets clear[] for the representatives of index ix within radius of q. */
@@ -171,20 +265,32 @@ static tessel_status mark_clear(const tessel_index *ix, const float q[3], double
     return TESSEL_OK;
 }
 
-/* Adds to reps points of the smoothed cloud around the small holes of mesh
- * (its border components of at most HOLE_MAX_EDGES edges), projected by Q
- * (which also gives their normal lines), each at least fraction times the
- * hole's mean border edge from every representative and from the points
- * added before it. reps->normals (oriented like the nearest
- * representative's) or else *lines grow with them. *added tells how
- * many; clear[v] (when clear is not NULL) is set for the representatives
- * within `clearing` mean border edges of the ball around each hole. */
-static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smoothed,
-                                   const tessel_projector *projector, double fraction,
-                                   double clearing, tessel_cloud *reps, float **lines,
-                                   uint8_t *clear, size_t *added)
+/* A place the front goes again: a ball and the mean edge there. */
+typedef struct site {
+    double c[3], reach, mean;
+} site;
+
+typedef struct site_list {
+    site *s;
+    size_t n, cap;
+} site_list;
+
+static tessel_status site_add(site_list *l, const double c[3], double reach, double mean)
 {
-    *added = 0;
+    if (tsl_grow((void **)&l->s, &l->cap, l->n + 1, sizeof *l->s))
+        return TESSEL_ERR_NOMEM;
+    site *x = &l->s[l->n++];
+    memcpy(x->c, c, sizeof x->c);
+    x->reach = reach;
+    x->mean = mean;
+    return TESSEL_OK;
+}
+
+/* The small holes of m: its border components (edge-connected border
+ * edges) of at most HOLE_MAX_EDGES edges, each as the ball round its
+ * vertices' centroid through the farthest. */
+static tessel_status hole_sites(const tessel_mesh *m, site_list *out)
+{
     size_t nt = m->triangle_count, nv = m->vertex_count;
     uint64_t *keys = tsl_alloc_array(3 * nt + 1, sizeof *keys);
     uint32_t *parent = tsl_alloc_array(nv + 1, sizeof *parent);
@@ -193,14 +299,8 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
     double *len = tsl_calloc_array(nv + 1, sizeof *len);
     double *reach = tsl_calloc_array(nv + 1, sizeof *reach);
     double *cen = tsl_calloc_array(3 * (nv + 1), sizeof *cen);
-    float *extra = NULL, *extra_n = NULL;
-    uint32_t *near = NULL;
-    size_t n_extra = 0, cap_extra = 0, cap_extra_n = 0, cap_near = 0;
-    /* The smoothed cloud's kd-tree is the projector's (made over it). */
-    const tessel_index *cix = tsl_projector_index(projector, smoothed->xyz, smoothed->count);
-    tessel_index *rix = NULL;
-    tessel_status st = cix ? TESSEL_ERR_NOMEM : TESSEL_ERR_INVALID_ARG;
-    if (!cix || !keys || !parent || !bnext || !edges || !len || !reach || !cen)
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!keys || !parent || !bnext || !edges || !len || !reach || !cen)
         goto done;
     for (size_t t = 0; t < nt; t++)
         for (int i = 0; i < 3; i++)
@@ -248,13 +348,114 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
         reach[r] = l > reach[r] ? l : reach[r];
     }
     st = TESSEL_OK;
-    for (size_t r = 0; r < nv && !st; r++) {
-        if (!edges[r] || edges[r] > HOLE_MAX_EDGES)
+    for (size_t r = 0; r < nv && !st; r++)
+        if (edges[r] && edges[r] <= HOLE_MAX_EDGES)
+            st = site_add(out, cen + 3 * r, reach[r], len[r] / (double)edges[r]);
+done:
+    free(keys);
+    free(parent);
+    free(bnext);
+    free(edges);
+    free(len);
+    free(reach);
+    free(cen);
+    return st;
+}
+
+/* The stray pieces of m (see STRAY_FRACTION), each as the ball round its
+ * vertices' centroid through the farthest. */
+static tessel_status stray_sites(const tessel_mesh *m, site_list *out)
+{
+    size_t nv = m->vertex_count, nt = m->triangle_count, strays;
+    tessel_status st = tsl_stray_pieces(m, &strays, NULL);
+    if (st || !strays)
+        return st;
+    uint32_t *comp;
+    size_t *tris;
+    if ((st = components(m, &comp, &tris)))
+        return st;
+    double *cen = tsl_calloc_array(3 * (nv + 1), sizeof *cen);
+    double *reach = tsl_calloc_array(nv + 1, sizeof *reach);
+    double *len = tsl_calloc_array(nv + 1, sizeof *len);
+    size_t *verts = tsl_calloc_array(nv + 1, sizeof *verts);
+    uint8_t *on = tsl_calloc_array(nv + 1, sizeof *on);
+    st = TESSEL_ERR_NOMEM;
+    if (!cen || !reach || !len || !verts || !on)
+        goto done;
+    for (size_t t = 0; t < nt; t++) {
+        const uint32_t *c = m->triangles + 3 * t;
+        uint32_t r = comp[c[0]];
+        if (!is_stray(tris[r], nt, strays))
             continue;
-        /* The smoothed points within a mean edge of the ball around the
-         * border (its centroid, its farthest vertex). */
-        const double *c = cen + 3 * r;
-        double mean = len[r] / (double)edges[r], radius = reach[r] + mean;
+        for (int i = 0; i < 3; i++) {
+            double a[3], b[3], d[3];
+            tsl_load(m->xyz + 3 * (size_t)c[i], a);
+            tsl_load(m->xyz + 3 * (size_t)c[(i + 1) % 3], b);
+            tsl_sub(b, a, d);
+            len[r] += tsl_norm(d);
+            on[c[i]] = 1;
+        }
+    }
+    for (size_t v = 0; v < nv; v++)
+        if (on[v]) {
+            verts[comp[v]]++;
+            for (int k = 0; k < 3; k++)
+                cen[3 * (size_t)comp[v] + k] += m->xyz[3 * v + k];
+        }
+    for (size_t v = 0; v < nv; v++)
+        for (int k = 0; k < 3 && verts[v]; k++)
+            cen[3 * v + k] /= (double)verts[v];
+    for (size_t v = 0; v < nv; v++)
+        if (on[v]) {
+            double a[3], d[3];
+            tsl_load(m->xyz + 3 * v, a);
+            tsl_sub(a, cen + 3 * (size_t)comp[v], d);
+            double l = tsl_norm(d);
+            reach[comp[v]] = l > reach[comp[v]] ? l : reach[comp[v]];
+        }
+    st = TESSEL_OK;
+    for (size_t r = 0; r < nv && !st; r++)
+        if (verts[r])
+            st = site_add(out, cen + 3 * r, reach[r], len[r] / (3.0 * (double)tris[r]));
+done:
+    free(comp);
+    free(tris);
+    free(cen);
+    free(reach);
+    free(len);
+    free(verts);
+    free(on);
+    return st;
+}
+
+/* Adds to reps points of the smoothed cloud around the small holes and the
+ * stray pieces of mesh (hole_sites, stray_sites), projected by Q (which
+ * also gives their normal lines), each at least fraction times the site's
+ * mean edge from every representative and from the points added before
+ * it. reps->normals (oriented like the nearest representative's) or else
+ * *lines grow with them. *added tells how many; clear[v] (when clear is
+ * not NULL) is set for the representatives within `clearing` mean edges
+ * of the ball of each site. */
+static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smoothed,
+                                   const tessel_projector *projector, double fraction,
+                                   double clearing, tessel_cloud *reps, float **lines,
+                                   uint8_t *clear, size_t *added)
+{
+    *added = 0;
+    site_list sites = {NULL, 0, 0};
+    float *extra = NULL, *extra_n = NULL;
+    uint32_t *near = NULL;
+    size_t n_extra = 0, cap_extra = 0, cap_extra_n = 0, cap_near = 0;
+    /* The smoothed cloud's kd-tree is the projector's (made over it). */
+    const tessel_index *cix = tsl_projector_index(projector, smoothed->xyz, smoothed->count);
+    tessel_index *rix = NULL;
+    tessel_status st = TESSEL_ERR_INVALID_ARG;
+    if (!cix || (st = hole_sites(m, &sites)) || (st = stray_sites(m, &sites)))
+        goto done;
+    for (size_t x = 0; x < sites.n && !st; x++) {
+        /* The smoothed points within a mean edge of the site's ball. */
+        const double *c = sites.s[x].c;
+        double mean = sites.s[x].mean, radius = sites.s[x].reach + mean;
         if (!rix && (st = tessel_index_build(&rix, reps->xyz, reps->count)))
             break;
         float q[3] = {(float)c[0], (float)c[1], (float)c[2]};
@@ -268,7 +469,7 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
             }
         }
         found = tessel_index_radius(cix, q, (float)radius, near, NULL, found);
-        if (clear && (st = mark_clear(rix, q, reach[r] + clearing * mean, clear)))
+        if (clear && (st = mark_clear(rix, q, sites.s[x].reach + clearing * mean, clear)))
             break;
         double gap2 = (fraction * mean) * (fraction * mean);
         size_t first = n_extra;
@@ -332,26 +533,22 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
         *added = n_extra;
     }
 done:
+    free(sites.s);
     tessel_index_destroy(rix);
-    free(keys);
-    free(parent);
-    free(bnext);
-    free(edges);
-    free(len);
-    free(reach);
-    free(cen);
     free(extra);
     free(extra_n);
     free(near);
     return st;
 }
 
-/* The small holes of the front's mesh (over reps) again, for each
- * (fraction, clearing) of repairs[0 .. count) in turn until none is left
- * or max_failed attempts in a row fail: extra representatives around them
- * and the front from the mesh less its triangles there. An attempt that
- * leaves fewer border edges replaces *mesh and keeps its extra
- * representatives in reps; the next starts from it. */
+/* The small holes and stray pieces of the front's mesh (over reps) again,
+ * for each (fraction, clearing) of repairs[0 .. count) in turn until none
+ * is left or max_failed attempts in a row fail: extra representatives
+ * around them and the front from the mesh less its triangles there. An
+ * attempt that leaves fewer components other than stray pieces, or as
+ * many and fewer defects (border edges, STRAY_WEIGHT for a stray piece),
+ * replaces *mesh and keeps its extra representatives in
+ * reps; the next starts from it. */
 static tessel_status repair_holes(const double (*repairs)[2], size_t count, int max_failed,
                                   tessel_mesh *mesh, const tessel_cloud *smoothed,
                                   const tessel_projector *projector,
@@ -361,9 +558,10 @@ static tessel_status repair_holes(const double (*repairs)[2], size_t count, int 
 {
     uint8_t *clear = NULL;
     uint32_t *start = NULL;
-    tessel_status st = TESSEL_OK;
     int failed = 0;
-    for (size_t f = 0; f < count && stats->border_edges && !st && failed < max_failed; f++) {
+    defects have;
+    tessel_status st = defects_of(mesh, stats, &have);
+    for (size_t f = 0; f < count && have.count && !st && failed < max_failed; f++) {
         size_t base = reps->count, nt = mesh->triangle_count, added = 0;
         free(clear);
         free(start);
@@ -390,7 +588,13 @@ static tessel_status repair_holes(const double (*repairs)[2], size_t count, int 
         if ((st = tsl_advancing_front_from(reps, *lines, front, start, kept, callbacks, &other,
                                            &fs)))
             break;
-        if (fs.border_edges < stats->border_edges) {
+        defects left;
+        if ((st = defects_of(&other, &fs, &left))) {
+            tessel_mesh_free(&other);
+            break;
+        }
+        if (better(&left, &have)) {
+            have = left;
             tessel_mesh_free(mesh);
             *mesh = other;
             *stats = fs;
@@ -538,17 +742,16 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, mesh, &s.front);
     /* Holes left: the front again around them with extra representatives,
      * the rest of the mesh kept as it is (every result is valid). */
-    if (!st && s.front.border_edges > 0) {
+    if (!st)
         st = repair_holes(global_repairs, COUNT(global_repairs), 1, mesh, &smoothed, projector,
                           &p.front, callbacks, &reps, &lines, &s.front);
-        if (!st && s.front.border_edges > 0)
-            st = repair_holes(local_repairs, COUNT(local_repairs), 2, mesh, &smoothed,
-                              projector, &p.front, callbacks, &reps, &lines, &s.front);
-    }
+    if (!st)
+        st = repair_holes(local_repairs, COUNT(local_repairs), 2, mesh, &smoothed, projector,
+                          &p.front, callbacks, &reps, &lines, &s.front);
     if (!st && lines)
         st = repair_orientation(mesh, &reps, lines, &p.front, callbacks, &s.front,
                                 &s.reoriented);
-    if (!st && s.reoriented && s.front.border_edges > 0)
+    if (!st && s.reoriented)
         st = repair_holes(local_repairs, COUNT(local_repairs), 2, mesh, &smoothed, projector,
                           &p.front, callbacks, &reps, &lines, &s.front);
     free(lines);

@@ -535,6 +535,133 @@ static void test_pipeline_touching_spheres(void)
     tessel_cloud_free(&c);
 }
 
+/* Appends to m a grid of n x n quads (2 n^2 triangles) at height z, or a
+ * tetrahedron (4 triangles) at x when n is 0: separate components. */
+static void add_piece(tessel_mesh *m, int n, float x, float z)
+{
+    size_t v0 = m->vertex_count, t0 = m->triangle_count;
+    size_t nv = n ? (size_t)(n + 1) * (size_t)(n + 1) : 4, nt = n ? 2 * (size_t)n * (size_t)n : 4;
+    m->xyz = realloc(m->xyz, 3 * (v0 + nv) * sizeof *m->xyz);
+    m->triangles = realloc(m->triangles, 3 * (t0 + nt) * sizeof *m->triangles);
+    CHECK(m->xyz && m->triangles);
+    float *p = m->xyz + 3 * v0;
+    uint32_t *t = m->triangles + 3 * t0, b = (uint32_t)v0;
+    if (!n) {
+        const float q[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+        const uint32_t f[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+        for (int i = 0; i < 4; i++) {
+            for (int k = 0; k < 3; k++) {
+                p[3 * i + k] = q[i][k] + (k == 0 ? x : 0.0f);
+                t[3 * i + k] = b + f[i][k];
+            }
+        }
+    } else {
+        for (int j = 0; j <= n; j++)
+            for (int i = 0; i <= n; i++) {
+                float *q = p + 3 * ((size_t)j * (size_t)(n + 1) + (size_t)i);
+                q[0] = (float)i, q[1] = (float)j, q[2] = z;
+            }
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++) {
+                uint32_t a = b + (uint32_t)(j * (n + 1) + i), c = a + (uint32_t)(n + 1);
+                const uint32_t q[6] = {a, a + 1, c + 1, a, c + 1, c};
+                memcpy(t + 6 * ((size_t)j * (size_t)n + (size_t)i), q, sizeof q);
+            }
+    }
+    m->vertex_count = v0 + nv;
+    m->triangle_count = t0 + nt;
+}
+
+static size_t strays_of(const tessel_mesh *m)
+{
+    size_t n = 99, pieces = 99;
+    CHECK(tsl_stray_pieces(m, &n, &pieces) == TESSEL_OK);
+    CHECK(n + pieces > 0);
+    return n;
+}
+
+/* Which components the pipeline's repair treats as stray pieces: those of
+ * at most 1% of the triangles, unless there are more than 8 of them. */
+static void test_stray_pieces(void)
+{
+    tessel_mesh m;
+    memset(&m, 0, sizeof m);
+    add_piece(&m, 20, 0.0f, 0.0f); /* 800 triangles */
+    CHECK(strays_of(&m) == 0);
+    add_piece(&m, 0, 50.0f, 0.0f); /* 4 of 804: under 1% */
+    CHECK(strays_of(&m) == 1);
+    add_piece(&m, 20, 0.0f, 5.0f); /* a second large piece is no stray */
+    CHECK(strays_of(&m) == 1);
+    for (int i = 0; i < 7; i++)
+        add_piece(&m, 0, 60.0f + 3.0f * (float)i, 0.0f);
+    CHECK(strays_of(&m) == 8);
+    add_piece(&m, 0, 90.0f, 0.0f); /* nine: a scene of many pieces */
+    CHECK(strays_of(&m) == 0);
+    tessel_mesh_free(&m);
+    memset(&m, 0, sizeof m);
+    add_piece(&m, 7, 0.0f, 0.0f);  /* 98 triangles: the tetrahedron is 3.9% */
+    add_piece(&m, 0, 50.0f, 0.0f);
+    CHECK(strays_of(&m) == 0);
+    tessel_mesh_free(&m);
+}
+
+/* A torus whose tube is 7.5 spacings across, under noise of one spacing:
+ * the clusters (8 spacings wide at this noise) are coarse for the tube,
+ * and with this seed the front cuts it in four places, closing each cut
+ * on both sides: four closed pieces, and no border edge to show it. The
+ * repair prefers attempts with fewer components (other than stray pieces),
+ * then fewer border edges: the front again with extra representatives
+ * joins the pieces into one. One cut is left, closed at both ends (genus 0
+ * instead of 1): nothing counts it. */
+static void test_pipeline_thin_torus(void)
+{
+    tessel_cloud c;
+    CHECK(surf_torus(&c, 1.0, 0.075, 0.02, 4) == TESSEL_OK);
+    tessel_smooth_recon_stats s;
+    tessel_mesh m = run_pipeline(&c, 0.02, 4, &s);
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(tessel_mesh_report_valid(&r) && r.self_intersections == 0 && r.components == 1 &&
+                  r.boundary_edges == 0,
+              "thin torus: %zu components, %zu boundary edges, %zu self-intersections",
+              r.components, r.boundary_edges, r.self_intersections);
+    CHECK(strays_of(&m) == 0);
+    printf("thin torus: %zu triangles, 1 component, genus %ld\n", m.triangle_count, r.genus);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
+/* A small sphere (radius 0.08, 5 spacings) 0.3 from a unit sphere is an
+ * object of its own: after the front it holds 100 of 21,826 triangles, a
+ * stray piece to the repair, whose extra attempts around it must leave the
+ * two apart and closed. */
+static void test_pipeline_small_object(void)
+{
+    tessel_cloud big, small, c;
+    CHECK(surf_sphere(&big, 0.015, 31) == TESSEL_OK);
+    CHECK(surf_sphere(&small, 0.25, 32) == TESSEL_OK);
+    CHECK(tessel_cloud_alloc(&c, big.count + small.count, 0, 0) == TESSEL_OK);
+    memcpy(c.xyz, big.xyz, 3 * big.count * sizeof *c.xyz);
+    for (size_t i = 0; i < small.count; i++)
+        for (int k = 0; k < 3; k++)
+            c.xyz[3 * (big.count + i) + (size_t)k] =
+                0.08f * small.xyz[3 * i + (size_t)k] + (k == 0 ? 1.38f : 0.0f);
+    tessel_smooth_recon_stats s;
+    tessel_mesh m = run_pipeline(&c, 0.002, 33, &s);
+    tessel_mesh_report r = check(&m);
+    size_t small_tris = 0;
+    for (size_t t = 0; t < m.triangle_count; t++)
+        small_tris += m.xyz[3 * (size_t)m.triangles[3 * t]] > 1.2f;
+    CHECK_MSG(tessel_mesh_report_valid(&r) && r.self_intersections == 0 &&
+                  r.boundary_edges == 0 && r.components == 2 && small_tris > 0,
+              "sphere and small sphere: %zu components, %zu boundary edges, %zu of %zu "
+              "triangles on the small one",
+              r.components, r.boundary_edges, small_tris, m.triangle_count);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&big);
+    tessel_cloud_free(&small);
+}
+
 /* tsl_flip_diagonals, the flips greedy uses: a flat square split along
  * its longer diagonal turns to the other, and stays so; a flip that would
  * meet another triangle is refused; invalid inputs are refused. */
@@ -734,6 +861,9 @@ int main(void)
     test_pipeline_open();
     test_pipeline_sheets();
     test_pipeline_touching_spheres();
+    test_stray_pieces();
+    test_pipeline_thin_torus();
+    test_pipeline_small_object();
     test_pipeline_far_point();
     test_pipeline_threads_and_cancel();
     return TEST_SUMMARY();
