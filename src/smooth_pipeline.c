@@ -13,11 +13,13 @@
  * closed components are turned outward by their volume. When the front
  * leaves small holes (where two parts of the surface come close, such as
  * the elephant's trunk curled against its face, the representatives are
- * too sparse for it to pass between them), it runs again with extra
+ * too sparse for it to pass between them), or stray pieces (a thin part
+ * cut off and closed at both ends), it runs again with extra
  * representatives around them: points of the smoothed cloud, projected by
  * Q, 0.4 to 0.7 mean edges apart; first anew, then from the mesh less its
  * triangles around the holes left (so the rest stays as it was); a result
- * is kept when it has fewer border edges. Points no triangle uses are
+ * is kept when it has fewer components, or fewer border edges and stray
+ * pieces (see `defects`). Points no triangle uses are
  * dropped before refinement, and the result's normals are those of the
  * vertices' stars. Each stage is timed, as in the paper's Table 1. */
 #include "internal.h"
