@@ -23,7 +23,8 @@
  *      targets of the issue: F >= 99.5, boundary edges under 0.1%, no
  *      non-manifold element or self-intersection, and as many components
  *      as the reference. The pipeline is deterministic, so this is how
- *      much its result depends on the last bits of the input.
+ *      much its result depends on the last bits of the input (--out DIR
+ *      writes these meshes too).
  *
  * usage: bench_pipeline [--max N] [--runs R] [--threads T] [--refine R] [--refine-k K]
  *                       [--tile N] [--noise X] [--data DIR] [--out DIR] [--jitter K]
@@ -232,7 +233,7 @@ static int meets_targets(const tessel_mesh *m, const tessel_mesh *ref, size_t re
     return ok;
 }
 
-static void run_jitter(const char *dir, const char *name, int copies,
+static void run_jitter(const char *dir, const char *name, int copies, const char *out,
                        const tessel_smooth_recon_params *p)
 {
     char path[1024], ref_path[1024];
@@ -275,8 +276,14 @@ static void run_jitter(const char *dir, const char *name, int copies,
         tessel_mesh m;
         char label[128];
         snprintf(label, sizeof label, "%s.pd.n05 jitter %d", name, k);
-        if (tessel_reconstruct_smooth(&c, p, NULL, &m, NULL) == TESSEL_OK)
+        if (tessel_reconstruct_smooth(&c, p, NULL, &m, NULL) == TESSEL_OK) {
             met += meets_targets(&m, &ref, ref_components, label);
+            if (out) {
+                char op[1024];
+                snprintf(op, sizeof op, "%s/%s.pd.n05.jitter%d.smooth.ply", out, name, k);
+                tessel_mesh_write(&m, op, NULL, NULL);
+            }
+        }
         tessel_mesh_free(&m);
     }
     printf("%s.pd.n05: targets met in %d of %d jittered copies\n", name, met, copies);
@@ -341,7 +348,7 @@ int main(int argc, char **argv)
         if (jitter > 0) {
             printf("\nJittered copies of the noisy files (2e-6 of the diagonal)\n");
             for (size_t k = 0; k < 3; k++)
-                run_jitter(dir, names[k], jitter, &p);
+                run_jitter(dir, names[k], jitter, out, &p);
         }
     }
     return 0;
