@@ -83,6 +83,11 @@ typedef struct rf {
     tessel_refine_stats stats;
     double lo[3], hi[3]; /* the triangles' box when the grid was built */
     struct worker *serial; /* the checks and flips outside parallel phases */
+    /* pinched[v]: vertex v (v < npinched) has more than one fan; NULL when
+     * none has. edge_exists sees one fan only, so their flips go to the
+     * serial tail, which asks the edge map. */
+    uint8_t *pinched;
+    size_t npinched;
 } rf;
 
 /* What one thread checks and flips with. Serially (splits, and the flips
@@ -540,35 +545,6 @@ static bool corners_valid(const rf *r)
     return true;
 }
 
-/* Builds twins and the edge map; INVALID_ARG for a non-manifold or
- * inconsistently oriented mesh or a triangle with a repeated or bad vertex.
- * The first half-edge of an edge goes into the map, the second becomes its
- * twin, a third (or a second in the same direction) is an error. */
-static tessel_status build_topology(rf *r)
-{
-    size_t nh = 3 * r->nt;
-    tessel_status st = map_init(&r->edges, nh / 2 + 1); /* edges: about half the half-edges */
-    if (st)
-        return st;
-    if (!corners_valid(r))
-        return TESSEL_ERR_INVALID_ARG;
-    for (size_t h = 0; h < nh; h++)
-        r->twin[h] = NONE;
-    for (size_t h = 0; h < nh; h++) {
-        uint32_t a = he_from(r, (uint32_t)h), b = he_to(r, (uint32_t)h);
-        uint32_t g = map_get(&r->edges, a, b);
-        if (g == NONE) {
-            if ((st = map_put(&r->edges, a, b, (uint32_t)h)))
-                return st;
-            continue;
-        }
-        if (r->twin[g] != NONE || he_from(r, g) != b)
-            return TESSEL_ERR_INVALID_ARG;
-        set_twin(r, (uint32_t)h, g);
-    }
-    return TESSEL_OK;
-}
-
 static inline uint32_t he_next(uint32_t h) { return h - h % 3 + (h % 3 + 1) % 3; }
 static inline uint32_t he_prev(uint32_t h) { return h - h % 3 + (h % 3 + 2) % 3; }
 
@@ -598,9 +574,10 @@ static bool edge_exists(const rf *r, uint32_t h, uint32_t b)
  * at a is the half-edge a -> x (x = he_to) and follows y -> a (y the
  * source of he_prev(c)); the twin of a -> x is he_prev of the corner whose
  * y is x. INVALID_ARG for a triangle with a repeated or bad vertex, an
- * edge run twice the same way or in more than two triangles, and a vertex
- * with more than one fan (edge_exists needs one). */
-static tessel_status build_twins(rf *r, int threads)
+ * edge run twice the same way or in more than two triangles, and (when
+ * pinched is NULL) a vertex with more than one fan (edge_exists needs
+ * one); else such vertices are flagged in pinched[0 .. nv). */
+static tessel_status build_twins(rf *r, int threads, uint8_t *pinched)
 {
     if (!corners_valid(r))
         return TESSEL_ERR_INVALID_ARG;
@@ -661,8 +638,12 @@ static tessel_status build_twins(rf *r, int threads)
             for (uint32_t k = first; k != NONE && seen <= n;
                  k = next[k] == first ? NONE : next[k])
                 seen++;
-            if (n && seen != n)
-                invalid = true;
+            if (n && seen != n) {
+                if (pinched)
+                    pinched[v] = 1;
+                else
+                    invalid = true;
+            }
         }
         free(out);
         free(in);
@@ -671,6 +652,42 @@ static tessel_status build_twins(rf *r, int threads)
     free(start);
     free(corner);
     return nomem ? TESSEL_ERR_NOMEM : invalid ? TESSEL_ERR_INVALID_ARG : TESSEL_OK;
+}
+
+/* Twins (build_twins, in parallel) and the edge map (each edge at its
+ * half-edge of smaller id), and r->pinched for vertices with more than one
+ * fan; INVALID_ARG for a non-manifold or inconsistently oriented mesh or a
+ * triangle with a repeated or bad vertex. */
+static tessel_status build_topology(rf *r, int threads)
+{
+    size_t nh = 3 * r->nt;
+    uint8_t *pinched = tsl_calloc_array(r->nv + 1, sizeof *pinched);
+    tessel_status st = pinched ? map_init(&r->edges, nh / 2 + 1) : TESSEL_ERR_NOMEM;
+    if (!st)
+        st = build_twins(r, threads, pinched);
+    for (size_t h = 0; h < nh && !st; h++)
+        if (r->twin[h] == NONE || r->twin[h] > h)
+            st = map_put(&r->edges, he_from(r, (uint32_t)h), he_to(r, (uint32_t)h), (uint32_t)h);
+    size_t any = 0;
+    for (size_t v = 0; v < r->nv && pinched; v++)
+        any += pinched[v];
+    if (st || !any) {
+        free(pinched);
+        return st;
+    }
+    r->pinched = pinched;
+    r->npinched = r->nv;
+    return TESSEL_OK;
+}
+
+/* Whether the pair at half-edge h would make an edge at a vertex of
+ * several fans (see rf.pinched). */
+static bool pair_pinched(const rf *r, uint32_t h, uint32_t g)
+{
+    if (!r->pinched)
+        return false;
+    uint32_t a = r->tri[he_prev(h)], b = r->tri[he_prev(g)];
+    return (a < r->npinched && r->pinched[a]) || (b < r->npinched && r->pinched[b]);
 }
 
 /* ------------------------------------------------------------------------ */
@@ -1089,7 +1106,7 @@ static void flip_block(rf *r, const blocks *b, worker *w, uint32_t key, const ui
         uint32_t h = list[k], g = twin_load(r, h);
         if (g == NONE)
             continue;
-        if (pair_key(r, b, h) != key) {
+        if (pair_key(r, b, h) != key || pair_pinched(r, h, g)) {
             if (!push(&w->tail, &w->ntail, &w->cap_tail, h))
                 w->status = TESSEL_ERR_NOMEM;
             continue;
@@ -1662,7 +1679,7 @@ tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cloud,
     if (r.rgb)
         memcpy(r.rgb, mesh->rgb, 3 * r.nv);
     memcpy(r.tri, mesh->triangles, 3 * r.nt * sizeof *r.tri);
-    if ((st = build_topology(&r)))
+    if ((st = build_topology(&r, p.threads)))
         goto done;
     if (!projector) {
         if ((st = tessel_projector_create(&own, cloud, NULL)))
@@ -1732,6 +1749,7 @@ done:
     map_free(&r.fit_of);
     free(r.fit_sum);
     tsl_trigrid_free(&r.grid);
+    free(r.pinched);
     worker_free(&serial);
     return st;
 }
@@ -1811,7 +1829,7 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     r.twin = tsl_alloc_array(3 * nt, sizeof *r.twin);
     r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
     st = TESSEL_ERR_NOMEM;
-    if (r.twin && r.box && !(st = build_twins(&r, 0)) && !(st = build_grid(&r)))
+    if (r.twin && r.box && !(st = build_twins(&r, 0, NULL)) && !(st = build_grid(&r)))
         st = flip_passes(&r, threads);
     for (size_t i = 0; i < 3 * nt; i++)
         tri[i] = back[tri[i]];
@@ -1822,6 +1840,7 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     free(r.box);
     map_free(&r.edges);
     tsl_trigrid_free(&r.grid);
+    free(r.pinched);
     worker_free(&serial);
     return st;
 }

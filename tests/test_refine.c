@@ -294,6 +294,41 @@ static void test_refine_large_triangle(void)
     tessel_cloud_free(&cloud);
 }
 
+/* A vertex with two fans: a tent (u, v, a) + (v, u, b) whose ridge uv the
+ * Delaunay rule would flip to ab (the angles at a and b add up to 239
+ * degrees), while the edge ab already exists in a triangle (a, b, w)
+ * hanging below, a fan of its own at a and at b. The flip would put ab in
+ * three triangles; the parallel flips see one fan of a vertex only, so
+ * such pairs go to the serial pass, which asks the edge map and refuses. */
+static void test_refine_pinched(void)
+{
+    const float xyz[15] = {-1, 0, 0.5f, 1, 0, 0.5f, 0, 0.3f, 0, 0, -0.3f, 0, 0, 0, -1};
+    const uint32_t tris[9] = {0, 1, 2, 1, 0, 3, 2, 3, 4};
+    tessel_mesh m;
+    tessel_cloud cloud;
+    CHECK(tessel_mesh_alloc(&m, 5, 3, 0, 0) == TESSEL_OK);
+    CHECK(tessel_cloud_alloc(&cloud, 5, 0, 0) == TESSEL_OK);
+    memcpy(m.xyz, xyz, sizeof xyz);
+    memcpy(m.triangles, tris, sizeof tris);
+    memcpy(cloud.xyz, xyz, sizeof xyz);
+    tessel_refine_params p = tessel_refine_params_default();
+    p.rounds = 1;
+    p.min_offset = 1e9; /* flips only */
+    tessel_refine_stats s;
+    CHECK(tessel_refine(&m, &cloud, NULL, &p, NULL, &s) == TESSEL_OK);
+    tessel_mesh_report r = check(&m);
+    CHECK_MSG(r.nonmanifold_edges == 0 && s.flips == 0 && m.triangle_count == 3 &&
+                  memcmp(m.triangles, tris, sizeof tris) == 0,
+              "pinched: %zu non-manifold edges, %zu flips", r.nonmanifold_edges,
+              (size_t)s.flips);
+    /* Without the hanging triangle the same tent flips. */
+    m.triangle_count = 2;
+    CHECK(tessel_refine(&m, &cloud, NULL, &p, NULL, &s) == TESSEL_OK);
+    CHECK(s.flips == 1 && m.triangle_count == 2);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&cloud);
+}
+
 static void test_refine_invalid(void)
 {
     tessel_cloud cloud;
@@ -854,6 +889,7 @@ int main(void)
     test_refine_rounds();
     test_refine_plane();
     test_refine_invalid();
+    test_refine_pinched();
     test_refine_large_triangle();
     test_pipeline_sphere();
     test_pipeline_torus();
