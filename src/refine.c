@@ -293,6 +293,14 @@ static inline void box_load(const rf *r, uint32_t t, float out[6])
         __atomic_load(&b[c], &out[c], __ATOMIC_RELAXED);
 }
 
+/* Restores triangle t's recorded box (as box_load reads it). */
+static inline void box_store(rf *r, uint32_t t, const float in[6])
+{
+    float *b = r->box + 6 * (size_t)t;
+    for (int c = 0; c < 6; c++)
+        __atomic_store(&b[c], &in[c], __ATOMIC_RELAXED);
+}
+
 /* Records triangle t's new box and lists it in the grid there (in a
  * parallel phase: in the worker's overlay), unless the cells it is listed
  * in for its previous box hold the new one (a triangle is always listed in
@@ -694,17 +702,24 @@ static bool pair_pinched(const rf *r, uint32_t h, uint32_t g)
 /* Split and flip                                                            */
 /* ------------------------------------------------------------------------ */
 
-/* Splits edge {u, v} at position pos (a new vertex; colour the mean of the
- * ends). *done reports whether it was kept. */
-static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3],
-                                double min_ratio, bool *done)
+/* One split: the edge x -> y (half-edge h = slot i of T1 = (x, y, a)) and
+ * its twin (slot j of T2 = (y, x, b), or none) become x - m - y; T1 turns
+ * into (x, m, a) and T3 = (m, y, a) is new, T2 into (y, m, b) and T4 =
+ * (m, x, b). What it replaced is kept to take it back. */
+typedef struct split_info {
+    uint32_t x, y, a, b, m, T1, T2, T3, T4, i, j;
+    uint32_t news[4];
+    int count;           /* 2 without T2, else 4 */
+    double olds[4][3];   /* unit normals of the triangles each new one replaces */
+    uint32_t tri[6], twin[6];
+    float box[12];
+} split_info;
+
+/* Whether the triangles of the edge at h (twin g) are skinny (the paper's
+ * ratio test: a triangle whose shortest edge is under min_ratio times its
+ * longest is not divided). */
+static bool split_skinny(const rf *r, uint32_t h, uint32_t g, double min_ratio)
 {
-    *done = false;
-    uint32_t h = map_get(&r->edges, u, v);
-    if (h == NONE)
-        return TESSEL_OK;
-    uint32_t g = r->twin[h];
-    /* Skinny triangles are not divided (the paper's ratio test). */
     uint32_t sides[2] = {h / 3, g == NONE ? NONE : g / 3};
     for (int s = 0; s < 2; s++) {
         if (sides[s] == NONE)
@@ -719,112 +734,156 @@ static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3
             lmin = l < lmin ? l : lmin;
             lmax = l > lmax ? l : lmax;
         }
-        if (!(lmin >= min_ratio * lmax)) {
-            r->stats.skipped_skinny++;
-            return TESSEL_OK;
-        }
+        if (!(lmin >= min_ratio * lmax))
+            return true;
     }
-    tessel_status st = reserve(r, 1, 2);
-    if (st)
-        return st;
-    /* Undo record. */
+    return false;
+}
+
+/* Splits the edge at h at pos into the vertex m and the triangles T3 (and
+ * T4 when the edge has a twin), whose room the caller made. */
+static void split_apply(rf *r, uint32_t h, const float pos[3], uint32_t m, uint32_t T3,
+                        uint32_t T4, split_info *s)
+{
+    uint32_t g = r->twin[h];
     uint32_t T1 = h / 3, i = h % 3, T2 = g == NONE ? NONE : g / 3, j = g == NONE ? 0 : g % 3;
-    uint32_t save_tri[6], save_twin[6];
-    memcpy(save_tri, r->tri + 3 * (size_t)T1, 3 * sizeof *save_tri);
-    memcpy(save_twin, r->twin + 3 * (size_t)T1, 3 * sizeof *save_twin);
-    if (T2 != NONE) {
-        memcpy(save_tri + 3, r->tri + 3 * (size_t)T2, 3 * sizeof *save_tri);
-        memcpy(save_twin + 3, r->twin + 3 * (size_t)T2, 3 * sizeof *save_twin);
-    }
+    s->T1 = T1, s->T2 = T2, s->i = i, s->j = j, s->m = m, s->T3 = T3;
+    s->T4 = T2 == NONE ? NONE : T4;
+    memcpy(s->tri, r->tri + 3 * (size_t)T1, 3 * sizeof *s->tri);
+    memcpy(s->twin, r->twin + 3 * (size_t)T1, 3 * sizeof *s->twin);
+    box_load(r, T1, s->box);
     double old1[3], old2[3] = {0.0, 0.0, 0.0};
     tri_cross(r, T1, old1);
     tsl_normalize(old1);
     if (T2 != NONE) {
+        memcpy(s->tri + 3, r->tri + 3 * (size_t)T2, 3 * sizeof *s->tri);
+        memcpy(s->twin + 3, r->twin + 3 * (size_t)T2, 3 * sizeof *s->twin);
+        box_load(r, T2, s->box + 6);
         tri_cross(r, T2, old2);
         tsl_normalize(old2);
     }
-
-    uint32_t m = (uint32_t)r->nv++;
+    uint32_t x = r->tri[3 * T1 + i], y = r->tri[3 * T1 + (i + 1) % 3];
+    uint32_t a = r->tri[3 * T1 + (i + 2) % 3];
+    s->x = x, s->y = y, s->a = a, s->b = NONE;
     for (int c = 0; c < 3; c++)
         r->xyz_own[3 * (size_t)m + c] = pos[c];
     if (r->rgb)
         for (int c = 0; c < 3; c++)
-            r->rgb[3 * (size_t)m + c] = (uint8_t)((r->rgb[3 * (size_t)u + c] +
-                                                   r->rgb[3 * (size_t)v + c] + 1) / 2);
-    /* T1 = (x, y, a) with h = x->y at slot i: becomes (x, m, a); T3 =
-     * (m, y, a). Likewise T2 = (y, x, b) -> (y, m, b) and T4 = (m, x, b). */
-    uint32_t x = r->tri[3 * T1 + i], y = r->tri[3 * T1 + (i + 1) % 3];
-    uint32_t a = r->tri[3 * T1 + (i + 2) % 3];
+            r->rgb[3 * (size_t)m + c] = (uint8_t)((r->rgb[3 * (size_t)x + c] +
+                                                   r->rgb[3 * (size_t)y + c] + 1) / 2);
     uint32_t h_ya = 3 * T1 + (i + 1) % 3, tw_ya = r->twin[h_ya];
-    uint32_t T3 = (uint32_t)r->nt++;
     r->tri[3 * T1 + (i + 1) % 3] = m;
     r->tri[3 * T3] = m;
     r->tri[3 * T3 + 1] = y;
     r->tri[3 * T3 + 2] = a;
-    uint32_t T4 = NONE, b = NONE, tw_xb = NONE;
+    uint32_t tw_xb = NONE;
     if (T2 != NONE) {
-        b = r->tri[3 * T2 + (j + 2) % 3];
+        s->b = r->tri[3 * T2 + (j + 2) % 3];
         tw_xb = r->twin[3 * T2 + (j + 1) % 3];
-        T4 = (uint32_t)r->nt++;
         r->tri[3 * T2 + (j + 1) % 3] = m;
         r->tri[3 * T4] = m;
         r->tri[3 * T4 + 1] = x;
-        r->tri[3 * T4 + 2] = b;
+        r->tri[3 * T4 + 2] = s->b;
     }
     /* Twins. T1: x->m (slot i), m->a (slot i+1), a->x (slot i+2, kept). */
-    set_twin(r, 3 * T1 + (i + 1) % 3, 3 * T3 + 2);  /* m->a / a->m */
-    set_twin(r, 3 * T3 + 1, tw_ya);                 /* y->a */
+    set_twin(r, 3 * T1 + (i + 1) % 3, 3 * T3 + 2); /* m->a / a->m */
+    set_twin(r, 3 * T3 + 1, tw_ya);                /* y->a */
     if (T2 != NONE) {
-        set_twin(r, 3 * T1 + i, 3 * T4);            /* x->m / m->x */
-        set_twin(r, 3 * T3, 3 * T2 + j);            /* m->y / y->m */
+        set_twin(r, 3 * T1 + i, 3 * T4);               /* x->m / m->x */
+        set_twin(r, 3 * T3, 3 * T2 + j);               /* m->y / y->m */
         set_twin(r, 3 * T2 + (j + 1) % 3, 3 * T4 + 2); /* m->b / b->m */
-        set_twin(r, 3 * T4 + 1, tw_xb);             /* x->b */
+        set_twin(r, 3 * T4 + 1, tw_xb);                /* x->b */
     } else {
-        r->twin[3 * T1 + i] = NONE;
-        r->twin[3 * T3] = NONE;
+        set_twin(r, 3 * T1 + i, NONE);
+        set_twin(r, 3 * T3, NONE);
     }
-    uint32_t news[4] = {T1, T3, T2, T4};
-    int count = T2 != NONE ? 4 : 2;
-    double olds[4][3];
+    s->news[0] = T1, s->news[1] = T3, s->news[2] = T2, s->news[3] = T4;
+    s->count = T2 != NONE ? 4 : 2;
     for (int c = 0; c < 3; c++) {
-        olds[0][c] = olds[1][c] = old1[c];
-        olds[2][c] = olds[3][c] = old2[c];
+        s->olds[0][c] = s->olds[1][c] = old1[c];
+        s->olds[2][c] = s->olds[3][c] = old2[c];
     }
+}
+
+/* Takes split s back: T1 and T2 as they were (corners, twins both ways,
+ * boxes); m, T3 and T4 are left unreferenced. */
+static void split_undo(rf *r, const split_info *s)
+{
+    const uint32_t T[2] = {s->T1, s->T2};
+    for (int k = 0; k < 2 && T[k] != NONE; k++) {
+        memcpy(r->tri + 3 * (size_t)T[k], s->tri + 3 * k, 3 * sizeof *s->tri);
+        box_store(r, T[k], s->box + 6 * k);
+    }
+    for (int k = 0; k < 2 && T[k] != NONE; k++)
+        for (uint32_t q = 0; q < 3; q++)
+            set_twin(r, 3 * T[k] + q, s->twin[3 * k + q]);
+}
+
+/* The edge map after split s: x-y gone, its six (or four) edges at their
+ * half-edges. */
+static tessel_status split_map(rf *r, const split_info *s)
+{
+    uint32_t T1 = s->T1, T2 = s->T2, T3 = s->T3, T4 = s->T4, i = s->i, j = s->j, m = s->m;
+    tessel_status st;
+    map_del(&r->edges, s->x, s->y);
+    if ((st = map_put(&r->edges, s->x, m, 3 * T1 + i)) ||
+        (st = map_put(&r->edges, m, s->y, 3 * T3)) ||
+        (st = map_put(&r->edges, m, s->a, 3 * T1 + (i + 1) % 3)) ||
+        (st = map_put(&r->edges, s->y, s->a, 3 * T3 + 1)))
+        return st;
+    if (T2 != NONE && ((st = map_put(&r->edges, m, s->b, 3 * T2 + (j + 1) % 3)) ||
+                       (st = map_put(&r->edges, s->x, s->b, 3 * T4 + 1))))
+        return st;
+    return TESSEL_OK;
+}
+
+/* The boxes of split s's triangles, listed where they left their cells
+ * (in the worker's overlay in a parallel phase). */
+static tessel_status split_grid(rf *r, worker *w, const split_info *s)
+{
+    for (int q = 0; q < s->count; q++) {
+        bool listed; /* T3 and T4 are new */
+        tessel_status st = grid_add(r, w, s->news[q], q % 2 == 1, &listed);
+        if (st)
+            return st;
+    }
+    return TESSEL_OK;
+}
+
+/* Splits edge {u, v} at position pos (a new vertex; colour the mean of the
+ * ends), serially: checked, then kept or taken back. *done reports
+ * whether it was kept. */
+static tessel_status split_edge(rf *r, uint32_t u, uint32_t v, const float pos[3],
+                                double min_ratio, bool *done)
+{
+    *done = false;
+    uint32_t h = map_get(&r->edges, u, v);
+    if (h == NONE)
+        return TESSEL_OK;
+    uint32_t g = r->twin[h];
+    if (split_skinny(r, h, g, min_ratio)) {
+        r->stats.skipped_skinny++;
+        return TESSEL_OK;
+    }
+    tessel_status st = reserve(r, 1, 2);
+    if (st)
+        return st;
+    uint32_t m = (uint32_t)r->nv++, T3 = (uint32_t)r->nt++;
+    uint32_t T4 = g == NONE ? NONE : (uint32_t)r->nt++;
+    split_info s;
+    split_apply(r, h, pos, m, T3, T4, &s);
     bool ok;
-    if ((st = check_news(r, r->serial, news, count, (const double(*)[3])olds, &ok)))
+    if ((st = check_news(r, r->serial, s.news, s.count, (const double(*)[3])s.olds, &ok)))
         return st;
     if (!ok) {
-        /* Undo: restore T1, T2 and the outer twins; drop m, T3, T4. */
-        memcpy(r->tri + 3 * (size_t)T1, save_tri, 3 * sizeof *save_tri);
-        memcpy(r->twin + 3 * (size_t)T1, save_twin, 3 * sizeof *save_twin);
-        set_twin(r, h_ya, tw_ya);
-        if (T2 != NONE) {
-            memcpy(r->tri + 3 * (size_t)T2, save_tri + 3, 3 * sizeof *save_tri);
-            memcpy(r->twin + 3 * (size_t)T2, save_twin + 3, 3 * sizeof *save_twin);
-            set_twin(r, 3 * T2 + (j + 1) % 3, tw_xb);
-            for (int q = 0; q < 3; q++)
-                set_twin(r, 3 * T1 + (uint32_t)q, r->twin[3 * T1 + (uint32_t)q]);
-        }
-        r->nt -= (size_t)(count / 2);
+        split_undo(r, &s);
+        r->nt -= (size_t)(s.count / 2);
         r->nv--;
         r->stats.skipped_invalid++;
         return TESSEL_OK;
     }
-    /* Keep: edge map and grid. */
-    map_del(&r->edges, x, y);
-    if ((st = map_put(&r->edges, x, m, 3 * T1 + i)) ||
-        (st = map_put(&r->edges, m, y, 3 * T3)) ||
-        (st = map_put(&r->edges, m, a, 3 * T1 + (i + 1) % 3)) ||
-        (st = map_put(&r->edges, y, a, 3 * T3 + 1)))
+    if ((st = split_map(r, &s)) || (st = split_grid(r, r->serial, &s)))
         return st;
-    if (T2 != NONE && ((st = map_put(&r->edges, m, b, 3 * T2 + (j + 1) % 3)) ||
-                       (st = map_put(&r->edges, x, b, 3 * T4 + 1))))
-        return st;
-    for (int q = 0; q < count; q++) {
-        bool listed; /* T3 and T4 are new */
-        if ((st = grid_add(r, r->serial, news[q], news[q] >= T3, &listed)))
-            return st;
-    }
     r->stats.splits++;
     *done = true;
     return TESSEL_OK;
