@@ -90,6 +90,19 @@ typedef struct rf {
     size_t npinched;
 } rf;
 
+/* One split: the edge x -> y (half-edge h = slot i of T1 = (x, y, a)) and
+ * its twin (slot j of T2 = (y, x, b), or none) become x - m - y; T1 turns
+ * into (x, m, a) and T3 = (m, y, a) is new, T2 into (y, m, b) and T4 =
+ * (m, x, b). What it replaced is kept to take it back. */
+typedef struct split_info {
+    uint32_t x, y, a, b, m, T1, T2, T3, T4, i, j;
+    uint32_t news[4];
+    int count;           /* 2 without T2, else 4 */
+    double olds[4][3];   /* unit normals of the triangles each new one replaces */
+    uint32_t tri[6], twin[6];
+    float box[12];
+} split_info;
+
 /* What one thread checks and flips with. Serially (splits, and the flips
  * of the serial tail) the checks query the mesh's grid, and a flip updates
  * the grid and the edge map at once. In a parallel phase of the flips (see
@@ -110,6 +123,18 @@ typedef struct worker {
     size_t ntail, cap_tail;
     size_t flips, invalid;
     tessel_status status;
+    /* The parallel splits (split_passes): ids below id_end are triangles
+     * (0: below r->nt); the block's splits, to take back at its end; the
+     * edges they moved, which the mesh's edge map does not know yet; the
+     * worker's own vertex and triangle ids for them. */
+    size_t id_end;
+    split_info *undo;
+    size_t nundo, cap_undo;
+    edge_map moved;
+    uint32_t *moved_ab; /* the moved edges' ends, to clear the map */
+    size_t nmoved, cap_moved;
+    uint32_t base_v, base_t;
+    size_t skinny;
 } worker;
 
 static inline uint64_t edge_key(uint32_t a, uint32_t b)
@@ -297,8 +322,10 @@ static inline void box_load(const rf *r, uint32_t t, float out[6])
 static inline void box_store(rf *r, uint32_t t, const float in[6])
 {
     float *b = r->box + 6 * (size_t)t;
-    for (int c = 0; c < 6; c++)
-        __atomic_store(&b[c], &in[c], __ATOMIC_RELAXED);
+    for (int c = 0; c < 6; c++) {
+        float v = in[c];
+        __atomic_store(&b[c], &v, __ATOMIC_RELAXED);
+    }
 }
 
 /* Records triangle t's new box and lists it in the grid there (in a
@@ -442,7 +469,7 @@ static tessel_status check_news(const rf *r, worker *w, const uint32_t *news, in
         return st;
     for (size_t i = 0; i < w->hits.count; i++) {
         uint32_t e = w->hits.found[i];
-        if (e >= r->nt)
+        if (e >= (w->id_end ? w->id_end : r->nt))
             continue;
         /* The box of e where it is now (the grid may list it elsewhere). */
         float eb[6];
@@ -702,18 +729,6 @@ static bool pair_pinched(const rf *r, uint32_t h, uint32_t g)
 /* Split and flip                                                            */
 /* ------------------------------------------------------------------------ */
 
-/* One split: the edge x -> y (half-edge h = slot i of T1 = (x, y, a)) and
- * its twin (slot j of T2 = (y, x, b), or none) become x - m - y; T1 turns
- * into (x, m, a) and T3 = (m, y, a) is new, T2 into (y, m, b) and T4 =
- * (m, x, b). What it replaced is kept to take it back. */
-typedef struct split_info {
-    uint32_t x, y, a, b, m, T1, T2, T3, T4, i, j;
-    uint32_t news[4];
-    int count;           /* 2 without T2, else 4 */
-    double olds[4][3];   /* unit normals of the triangles each new one replaces */
-    uint32_t tri[6], twin[6];
-    float box[12];
-} split_info;
 
 /* Whether the triangles of the edge at h (twin g) are skinny (the paper's
  * ratio test: a triangle whose shortest edge is under min_ratio times its
@@ -926,6 +941,9 @@ static void worker_free(worker *w)
     free(w->seg);
     free(w->next);
     free(w->tail);
+    free(w->undo);
+    map_free(&w->moved);
+    free(w->moved_ab);
     memset(w, 0, sizeof *w);
 }
 
@@ -1384,13 +1402,275 @@ done:
 }
 
 /* ------------------------------------------------------------------------ */
-/* Rounds                                                                    */
+/* Splits in parallel                                                        */
 /* ------------------------------------------------------------------------ */
 
 typedef struct split_job {
     uint32_t u, v;
     float pos[3];
 } split_job;
+
+/* The block of the split of the edge at h at pos (pair_key), or NONE for
+ * the serial tail: a border edge, a long triangle, or a new vertex more
+ * than a cell outside the pair's box. New triangles then stay within 3
+ * cells of the block's pair centre, and the pairs of two blocks of a
+ * colour within 3 cells of centres more than BLOCK_CELLS apart. */
+static uint32_t split_key(const rf *r, const blocks *b, uint32_t h, const float pos[3])
+{
+    uint32_t key = pair_key(r, b, h);
+    if (key == NONE)
+        return NONE;
+    float b1[6], b2[6];
+    box_load(r, h / 3, b1);
+    box_load(r, twin_load(r, h) / 3, b2);
+    double cell = b->reach / LONG_CELLS;
+    for (int k = 0; k < 3; k++) {
+        double lo = (b1[k] < b2[k] ? b1[k] : b2[k]) - cell;
+        double hi = (b1[3 + k] > b2[3 + k] ? b1[3 + k] : b2[3 + k]) + cell;
+        if (!(pos[k] >= lo && pos[k] <= hi))
+            return NONE;
+    }
+    return key;
+}
+
+/* The half-edge of {u, v} in a parallel phase: the edge map as the phase
+ * began, unless a split of this block moved it. */
+static uint32_t phase_edge(const rf *r, const worker *w, uint32_t u, uint32_t v)
+{
+    uint32_t h = w->moved.count ? map_get(&w->moved, u, v) : NONE;
+    return h != NONE ? h : map_get(&r->edges, u, v);
+}
+
+static bool remember_moved(worker *w, uint32_t a, uint32_t b, uint32_t h)
+{
+    if (map_put(&w->moved, a, b, h) || !push(&w->moved_ab, &w->nmoved, &w->cap_moved, a) ||
+        !push(&w->moved_ab, &w->nmoved, &w->cap_moved, b))
+        return false;
+    return true;
+}
+
+/* One block of a parallel phase: the splits jobs[list[0 .. n)] of key
+ * `key`, in order, each checked against the mesh as the earlier ones of
+ * the block left it (with the worker's own ids for the new vertices and
+ * triangles, and its overlay grid). The splits kept go into the log; then
+ * all are taken back, newest first, and the merge makes them again with
+ * the mesh's next ids. Splits whose pair changed block go to the tail. */
+static void split_block(rf *r, const blocks *b, worker *w, uint32_t key, const split_job *jobs,
+                        const uint32_t *list, size_t n, double min_ratio)
+{
+    tsl_trigrid_clear(&w->overlay);
+    uint32_t next_v = w->base_v, next_t = w->base_t;
+    for (size_t k = 0; k < n && !w->status; k++) {
+        const split_job *jb = &jobs[list[k]];
+        uint32_t h = phase_edge(r, w, jb->u, jb->v);
+        if (h == NONE)
+            continue;
+        if (split_key(r, b, h, jb->pos) != key) {
+            if (!push(&w->tail, &w->ntail, &w->cap_tail, list[k]))
+                w->status = TESSEL_ERR_NOMEM;
+            continue;
+        }
+        if (split_skinny(r, h, twin_load(r, h), min_ratio)) {
+            w->skinny++;
+            continue;
+        }
+        if (w->nundo == w->cap_undo &&
+            tsl_grow((void **)&w->undo, &w->cap_undo, w->nundo + 1, sizeof *w->undo)) {
+            w->status = TESSEL_ERR_NOMEM;
+            break;
+        }
+        split_info *s = &w->undo[w->nundo];
+        split_apply(r, h, jb->pos, next_v, next_t, next_t + 1, s);
+        bool ok;
+        if ((w->status = check_news(r, w, s->news, s->count, (const double(*)[3])s->olds, &ok)))
+            break;
+        if (!ok) {
+            split_undo(r, s);
+            w->invalid++;
+            continue;
+        }
+        next_v++;
+        next_t += 2;
+        w->nundo++;
+        /* y-a and x-b moved to T3 and T4; the other edges are new or
+         * stayed where they were. */
+        if (!push(&w->log, &w->nlog, &w->cap_log, list[k]) ||
+            !remember_moved(w, s->y, s->a, 3 * s->T3 + 1) ||
+            !remember_moved(w, s->x, s->b, 3 * s->T4 + 1)) {
+            w->status = TESSEL_ERR_NOMEM;
+            break;
+        }
+        if ((w->status = split_grid(r, w, s)))
+            break;
+    }
+    while (w->nundo)
+        split_undo(r, &w->undo[--w->nundo]);
+    for (size_t k = 0; k < w->nmoved; k += 2)
+        map_del(&w->moved, w->moved_ab[k], w->moved_ab[k + 1]);
+    w->nmoved = 0;
+    if (!w->status && (!push(&w->seg, &w->nseg, &w->cap_seg, key) ||
+                       !push(&w->seg, &w->nseg, &w->cap_seg, (uint32_t)w->nlog)))
+        w->status = TESSEL_ERR_NOMEM;
+}
+
+/* A split the phase kept, made again in the mesh with its next ids. */
+static tessel_status split_again(rf *r, const split_job *jb)
+{
+    uint32_t h = map_get(&r->edges, jb->u, jb->v);
+    if (h == NONE || r->twin[h] == NONE)
+        return TESSEL_ERR_INTERNAL;
+    uint32_t m = (uint32_t)r->nv++, T3 = (uint32_t)r->nt++, T4 = (uint32_t)r->nt++;
+    split_info s;
+    split_apply(r, h, jb->pos, m, T3, T4, &s);
+    tessel_status st = split_map(r, &s);
+    if (!st)
+        st = split_grid(r, r->serial, &s);
+    r->stats.splits++;
+    return st;
+}
+
+/* After a phase: the splits kept by every block, in key order, made again
+ * in the mesh; the tails gathered. */
+static tessel_status split_merge(rf *r, worker *ws, int nw, const split_job *jobs,
+                                 uint32_t **tail, size_t *ntail, size_t *cap_tail)
+{
+    size_t nseg = 0;
+    for (int t = 0; t < nw; t++)
+        nseg += ws[t].nseg / 2;
+    seg_ref *order = tsl_alloc_array(nseg ? nseg : 1, sizeof *order);
+    if (!order)
+        return TESSEL_ERR_NOMEM;
+    size_t m = 0;
+    for (int t = 0; t < nw; t++)
+        for (size_t k = 0; k < ws[t].nseg / 2; k++)
+            order[m++] = (seg_ref){ws[t].seg[2 * k], (uint32_t)t, k};
+    if (m)
+        qsort(order, m, sizeof *order, cmp_seg);
+    tessel_status st = TESSEL_OK;
+    for (size_t k = 0; k < m && !st; k++) {
+        const worker *w = &ws[order[k].worker];
+        size_t s = order[k].index;
+        size_t from = s ? w->seg[2 * s - 1] : 0, to = w->seg[2 * s + 1];
+        for (size_t f = from; f < to && !st; f++)
+            st = split_again(r, &jobs[w->log[f]]);
+    }
+    free(order);
+    for (int t = 0; t < nw && !st; t++) {
+        worker *w = &ws[t];
+        for (size_t k = 0; k < w->ntail && !st; k++)
+            if (!push(tail, ntail, cap_tail, w->tail[k]))
+                st = TESSEL_ERR_NOMEM;
+        w->nlog = w->nseg = w->ntail = 0;
+    }
+    return st;
+}
+
+/* The splits of jobs[want[0 .. n)] (want in Morton order), in parallel
+ * and deterministically, as the flips (flip_passes): each split goes to
+ * the block of its pair (split_key); the eight colours take turns, the
+ * blocks of a colour are split in parallel, each in order by one thread,
+ * and a merge makes their splits in the mesh in key order; splits with a
+ * long triangle, on the border, reaching outside their pair or whose pair
+ * changed block are made serially after the colours, in order. The
+ * result depends on the mesh only, not on the thread count; it is not
+ * that of one serial pass in Morton order (a split may see a neighbour's
+ * split that the serial pass made later, or not see one it made
+ * earlier). */
+static tessel_status split_passes(rf *r, const split_job *jobs, const uint32_t *want, size_t n,
+                                  double min_ratio, int threads)
+{
+    int nw = tsl_threads(threads);
+    blocks b;
+    blocks_init(r, &b);
+    uint32_t *key = tsl_alloc_array(n + 1, sizeof *key);
+    uint32_t *sorted = tsl_alloc_array(n + 1, sizeof *sorted);
+    uint32_t *start = tsl_calloc_array(8 * (size_t)b.count + 1, sizeof *start);
+    uint32_t *blist = tsl_alloc_array(8 * (size_t)b.count + 1, sizeof *blist);
+    worker *ws = tsl_calloc_array((size_t)nw, sizeof *ws);
+    uint32_t *tail = NULL;
+    size_t ntail = 0, cap_tail = 0, most = 0, nsorted = 0;
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!key || !sorted || !start || !blist || !ws)
+        goto done;
+    st = TESSEL_OK;
+    for (size_t k = 0; k < n && !st; k++) {
+        const split_job *jb = &jobs[want[k]];
+        uint32_t h = map_get(&r->edges, jb->u, jb->v);
+        key[k] = h == NONE ? NONE : split_key(r, &b, h, jb->pos);
+        if (key[k] == NONE) {
+            if (!push(&tail, &ntail, &cap_tail, want[k]))
+                st = TESSEL_ERR_NOMEM;
+            continue;
+        }
+        start[key[k] + 1]++;
+    }
+    for (size_t k = 0; k < 8 * (size_t)b.count; k++) {
+        most = start[k + 1] > most ? start[k + 1] : most;
+        start[k + 1] += start[k];
+    }
+    for (size_t k = 0; k < n; k++)
+        if (key[k] != NONE) {
+            sorted[start[key[k]]++] = want[k];
+            nsorted++;
+        }
+    /* start[k] is now the end of key k's splits. Room for the merges' ids
+     * (below nv + n and nt + 2 n) and, beyond, each worker's own. */
+    size_t nv0 = r->nv, nt0 = r->nt;
+    if (!st)
+        st = reserve(r, n + (size_t)nw * most, 2 * n + 2 * (size_t)nw * most);
+    for (int t = 0; t < nw && !st; t++) {
+        ws[t].parallel = true;
+        ws[t].base_v = (uint32_t)(nv0 + n + (size_t)t * most);
+        ws[t].base_t = (uint32_t)(nt0 + 2 * n + 2 * (size_t)t * most);
+        ws[t].id_end = nt0 + 2 * n + 2 * (size_t)nw * most;
+        if (!(st = tsl_trigrid_init_like(&ws[t].overlay, &r->grid)))
+            st = map_init(&ws[t].moved, 64);
+    }
+    for (uint32_t colour = 0; colour < 8 && !st && nsorted; colour++) {
+        size_t nb = 0;
+        for (uint32_t k = colour * b.count; k < (colour + 1) * b.count; k++)
+            if (start[k] > (k ? start[k - 1] : 0))
+                blist[nb++] = k;
+        ptrdiff_t count = (ptrdiff_t)nb;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(nw)
+        for (ptrdiff_t q = 0; q < count; q++) {
+            uint32_t k = blist[q];
+            size_t from = k ? start[k - 1] : 0;
+            worker *w = &ws[omp_get_thread_num()];
+            split_block(r, &b, w, k, jobs, sorted + from, start[k] - from, min_ratio);
+        }
+        for (int t = 0; t < nw && !st; t++) {
+            st = ws[t].status;
+            r->stats.skipped_skinny += ws[t].skinny;
+            r->stats.skipped_invalid += ws[t].invalid;
+            ws[t].skinny = ws[t].invalid = 0;
+        }
+        if (!st)
+            st = split_merge(r, ws, nw, jobs, &tail, &ntail, &cap_tail);
+    }
+    /* The tail in the jobs' order. */
+    if (!st && ntail)
+        qsort(tail, ntail, sizeof *tail, cmp_u32);
+    for (size_t k = 0; k < ntail && !st; k++) {
+        bool done_split;
+        const split_job *jb = &jobs[tail[k]];
+        st = split_edge(r, jb->u, jb->v, jb->pos, min_ratio, &done_split);
+    }
+done:
+    for (int t = 0; ws && t < nw; t++)
+        worker_free(&ws[t]);
+    free(ws);
+    free(key);
+    free(sorted);
+    free(start);
+    free(blist);
+    free(tail);
+    return st;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Rounds                                                                    */
+/* ------------------------------------------------------------------------ */
 
 /* Area-weighted vertex normals (unnormalised sums, then unit). */
 static tessel_status vertex_normals(const rf *r, double **out)
@@ -1654,19 +1934,14 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
         r->fit_sum = sum;
         sum = NULL;
     }
-    /* Each edge once, in the Morton order of the fits: a split reads and
+    /* Each edge once, in the Morton order of the fits (a split reads and
      * writes the mesh, its edge map and its grid around the edge, so
-     * neighbouring splits in a row find them in cache. */
+     * neighbouring splits in a row find them in cache), in parallel. */
     size_t nw = 0;
     for (size_t oo = 0; oo < ne; oo++)
         if (want[order[oo]])
             order[nw++] = order[oo];
-    st = TESSEL_OK;
-    for (size_t e = 0; e < nw && !st; e++) {
-        const split_job *jb = &jobs[order[e]];
-        bool done_split;
-        st = split_edge(r, jb->u, jb->v, jb->pos, p->min_edge_ratio, &done_split);
-    }
+    st = split_passes(r, jobs, order, nw, p->min_edge_ratio, c->threads);
     if (st)
         goto done;
     if (p->flip)
