@@ -47,8 +47,8 @@
  * eight starting points). */
 static const double global_repairs[][2] = {
     {0.7, INFINITY}, {0.5, INFINITY}, {0.6, INFINITY}, {0.4, INFINITY}};
-static const double local_repairs[][2] = {{0.7, 1.0}, {0.7, 2.0}, {0.5, 4.0}, {0.6, 2.0},
-                                          {0.7, 4.0}, {0.4, 4.0}, {0.5, 8.0}};
+static const double local_repairs[][2] = {{0.7, 1.0}, {0.7, 2.0}, {0.4, 4.0}, {0.5, 4.0},
+                                          {0.6, 2.0}, {0.7, 4.0}, {0.5, 8.0}};
 #define COUNT(a) (sizeof (a) / sizeof *(a))
 
 tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
