@@ -221,6 +221,22 @@ static tessel_status map_put(edge_map *m, uint32_t a, uint32_t b, uint32_t he)
     return TESSEL_OK;
 }
 
+/* map_put for several threads filling a map at once: the map was sized
+ * for every key (no growth), each key is put once, and nobody reads it
+ * until all are in. The caller sets m->count after. */
+static void map_put_shared(edge_map *m, uint32_t a, uint32_t b, uint32_t he)
+{
+    uint64_t key = edge_key(a, b);
+    for (size_t s = map_slot(m, key);; s = (s + 1) & (m->slots - 1)) {
+        uint64_t empty = 0;
+        if (__atomic_compare_exchange_n(&m->slot[s].key, &empty, key, false, __ATOMIC_RELAXED,
+                                        __ATOMIC_RELAXED)) {
+            m->slot[s].val = he;
+            return;
+        }
+    }
+}
+
 static void map_del(edge_map *m, uint32_t a, uint32_t b)
 {
     uint64_t key = edge_key(a, b);
@@ -697,12 +713,23 @@ static tessel_status build_topology(rf *r, int threads)
 {
     size_t nh = 3 * r->nt;
     uint8_t *pinched = tsl_calloc_array(r->nv + 1, sizeof *pinched);
-    tessel_status st = pinched ? map_init(&r->edges, nh / 2 + 1) : TESSEL_ERR_NOMEM;
-    if (!st)
-        st = build_twins(r, threads, pinched);
-    for (size_t h = 0; h < nh && !st; h++)
-        if (r->twin[h] == NONE || r->twin[h] > h)
-            st = map_put(&r->edges, he_from(r, (uint32_t)h), he_to(r, (uint32_t)h), (uint32_t)h);
+    tessel_status st = pinched ? build_twins(r, threads, pinched) : TESSEL_ERR_NOMEM;
+    size_t edges = 0;
+    ptrdiff_t count = (ptrdiff_t)nh;
+    if (!st) {
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads)) reduction(+ : edges)
+        for (ptrdiff_t h = 0; h < count; h++)
+            edges += r->twin[h] == NONE || r->twin[h] > (uint32_t)h;
+        st = map_init(&r->edges, edges);
+    }
+    if (!st) {
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+        for (ptrdiff_t h = 0; h < count; h++)
+            if (r->twin[h] == NONE || r->twin[h] > (uint32_t)h)
+                map_put_shared(&r->edges, he_from(r, (uint32_t)h), he_to(r, (uint32_t)h),
+                               (uint32_t)h);
+        r->edges.count = edges;
+    }
     size_t any = 0;
     for (size_t v = 0; v < r->nv && pinched; v++)
         any += pinched[v];
@@ -1928,9 +1955,11 @@ static tessel_status one_round(rf *r, const round_ctx *c, const tessel_refine_pa
             nf += fitted[e];
         if ((st = map_init(&r->fit_of, nf)))
             goto done;
-        for (size_t e = 0; e < ne; e++)
-            if (fitted[e] && (st = map_put(&r->fit_of, jobs[e].u, jobs[e].v, (uint32_t)e)))
-                goto done;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(c->threads))
+        for (long long e = 0; e < count; e++)
+            if (fitted[e])
+                map_put_shared(&r->fit_of, jobs[e].u, jobs[e].v, (uint32_t)e);
+        r->fit_of.count = nf;
         r->fit_sum = sum;
         sum = NULL;
     }
