@@ -193,6 +193,49 @@ static void test_refine_sphere(void)
     tessel_cloud_free(&dense);
 }
 
+/* The parallel splits (split_passes) on a mesh of many blocks: a noisy
+ * triangulation of the unit sphere (edges about 0.03; blocks 16 mean
+ * edges wide: 64 blocks, 3 to 8 of each colour with splits) refined
+ * against a dense sample. One, two and three threads give the same bits; the mesh
+ * stays valid and closed, and each split adds one vertex and two
+ * triangles. */
+static void test_refine_split_blocks(void)
+{
+    tessel_cloud coarse, dense;
+    CHECK(surf_sphere(&coarse, 0.025, 41) == TESSEL_OK);
+    free(coarse.normals);
+    coarse.normals = NULL;
+    surf_noise(&coarse, 0.005, 42);
+    CHECK(surf_sphere_fibonacci(&dense, 100000, 0.3, 43) == TESSEL_OK);
+    tessel_mesh m[3];
+    tessel_refine_stats rs[3];
+    tessel_mesh_report r0;
+    for (int t = 0; t < 3; t++) {
+        CHECK(tessel_advancing_front(&coarse, NULL, NULL, &m[t], NULL) == TESSEL_OK);
+        if (t == 0)
+            r0 = check(&m[0]);
+        tessel_refine_params rp = tessel_refine_params_default();
+        rp.rounds = 1;
+        rp.threads = t + 1;
+        CHECK(tessel_refine(&m[t], &dense, NULL, &rp, NULL, &rs[t]) == TESSEL_OK);
+    }
+    tessel_mesh_report r = check(&m[0]);
+    CHECK_MSG(tessel_mesh_report_valid(&r) && r.self_intersections == 0 &&
+                  r.boundary_edges == r0.boundary_edges,
+              "split blocks: %zu self-intersections, %zu boundary edges (%zu before)",
+              r.self_intersections, r.boundary_edges, r0.boundary_edges);
+    CHECK_MSG(rs[0].splits > 1000, "split blocks: %zu splits", (size_t)rs[0].splits);
+    CHECK(m[0].vertex_count == coarse.count + rs[0].splits);
+    CHECK(m[0].triangle_count == r0.triangles + 2 * rs[0].splits);
+    CHECK(same_mesh(&m[0], &m[1]) && same_mesh(&m[0], &m[2]));
+    printf("split blocks: %zu -> %zu triangles, %zu splits, %zu refused\n", r0.triangles,
+           m[0].triangle_count, (size_t)rs[0].splits, (size_t)rs[0].skipped_invalid);
+    for (int t = 0; t < 3; t++)
+        tessel_mesh_free(&m[t]);
+    tessel_cloud_free(&coarse);
+    tessel_cloud_free(&dense);
+}
+
 static void test_refine_rounds(void)
 {
     /* A finer triangulation, most of whose edges survive the first round:
@@ -887,6 +930,7 @@ int main(void)
     test_flip_blocks_tail();
     test_refine_sphere();
     test_refine_rounds();
+    test_refine_split_blocks();
     test_refine_plane();
     test_refine_invalid();
     test_refine_pinched();
