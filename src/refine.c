@@ -1238,24 +1238,34 @@ static int cmp_seg(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* The blocks the workers did in a phase, by key: (key, worker, index of
+ * the block's part of the worker's log); *m of them. */
+static seg_ref *blocks_done(const worker *ws, int nw, size_t *m)
+{
+    size_t nseg = 0;
+    for (int t = 0; t < nw; t++)
+        nseg += ws[t].nseg / 2;
+    seg_ref *order = tsl_alloc_array(nseg ? nseg : 1, sizeof *order);
+    *m = 0;
+    if (!order)
+        return NULL;
+    for (int t = 0; t < nw; t++)
+        for (size_t k = 0; k < ws[t].nseg / 2; k++)
+            order[(*m)++] = (seg_ref){ws[t].seg[2 * k], (uint32_t)t, k};
+    if (*m)
+        qsort(order, *m, sizeof *order, cmp_seg);
+    return order;
+}
+
 /* After a phase: the flips of every block, in key order, into the edge
  * map and the grid; the marks into look; the tails gathered. */
 static tessel_status merge_phase(rf *r, worker *ws, int nw, uint8_t *look, uint32_t **tail,
                                  size_t *ntail, size_t *cap_tail)
 {
-    size_t nseg = 0;
-    for (int t = 0; t < nw; t++)
-        nseg += ws[t].nseg / 2;
-    /* The blocks done, by key: (key, worker, index of the block's part). */
-    seg_ref *order = tsl_alloc_array(nseg ? nseg : 1, sizeof *order);
+    size_t m;
+    seg_ref *order = blocks_done(ws, nw, &m);
     if (!order)
         return TESSEL_ERR_NOMEM;
-    size_t m = 0;
-    for (int t = 0; t < nw; t++)
-        for (size_t k = 0; k < ws[t].nseg / 2; k++)
-            order[m++] = (seg_ref){ws[t].seg[2 * k], (uint32_t)t, k};
-    if (m)
-        qsort(order, m, sizeof *order, cmp_seg);
     tessel_status st = TESSEL_OK;
     for (size_t k = 0; k < m && !st; k++) {
         const worker *w = &ws[order[k].worker];
@@ -1561,18 +1571,10 @@ static tessel_status split_again(rf *r, const split_job *jb)
 static tessel_status split_merge(rf *r, worker *ws, int nw, const split_job *jobs,
                                  uint32_t **tail, size_t *ntail, size_t *cap_tail)
 {
-    size_t nseg = 0;
-    for (int t = 0; t < nw; t++)
-        nseg += ws[t].nseg / 2;
-    seg_ref *order = tsl_alloc_array(nseg ? nseg : 1, sizeof *order);
+    size_t m;
+    seg_ref *order = blocks_done(ws, nw, &m);
     if (!order)
         return TESSEL_ERR_NOMEM;
-    size_t m = 0;
-    for (int t = 0; t < nw; t++)
-        for (size_t k = 0; k < ws[t].nseg / 2; k++)
-            order[m++] = (seg_ref){ws[t].seg[2 * k], (uint32_t)t, k};
-    if (m)
-        qsort(order, m, sizeof *order, cmp_seg);
     tessel_status st = TESSEL_OK;
     for (size_t k = 0; k < m && !st; k++) {
         const worker *w = &ws[order[k].worker];
