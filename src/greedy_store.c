@@ -936,6 +936,42 @@ static tessel_status estimate_spacing(gp *g, double *spacing)
     return TESSEL_OK;
 }
 
+/* Of exact duplicates, init keeps the first in dexel order. When an
+ * existing triangle names another of them, that one is kept instead: the
+ * caller's triangles and the new ones must name the same point (else the
+ * two meet at a position without sharing a vertex). The former keep
+ * becomes a duplicate of it. Points left out but for duplicates come
+ * later, so every dead point here is a duplicate. Of two both named by
+ * existing triangles the first keeps the position (such a mesh touches
+ * itself there, which the mesh check calls invalid). */
+static tessel_status adopt_used_duplicates(gp *g, const uint32_t *tris, size_t count,
+                                           const uint32_t *inv)
+{
+    uint8_t *named = tsl_calloc_array(g->n, sizeof *named);
+    if (!named)
+        return TESSEL_ERR_NOMEM;
+    for (size_t c = 0; c < 3 * count; c++)
+        if (tris[c] < g->n)
+            named[inv[tris[c]]] = 1;
+    for (size_t c = 0; c < 3 * count; c++) {
+        if (tris[c] >= g->n)
+            continue;
+        uint32_t v = inv[tris[c]], k = v;
+        while (st(g, k) == ST_DEAD)
+            k = g->ls[k];
+        if (k == v || named[k])
+            continue;
+        uint8_t sv = g->state[v];
+        g->state[v] = g->state[k];
+        g->state[k] = sv;
+        g->ls[v] = g->ls[k];
+        g->ls[k] = v;
+        named[k] = 1; /* its other duplicates reach v through it */
+    }
+    free(named);
+    return TESSEL_OK;
+}
+
 /* Imports params->existing: links the triangles, then derives every touched
  * point's fan; fans that are not a single path or cycle, or edges used twice
  * in one direction, make the input invalid. */
@@ -946,7 +982,7 @@ tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count)
         return TESSEL_ERR_NOMEM;
     for (size_t i = 0; i < g->n; i++)
         inv[g->orig[i]] = (uint32_t)i;
-    tessel_status s = TESSEL_OK;
+    tessel_status s = adopt_used_duplicates(g, tris, count, inv);
     for (size_t t = 0; t < count && s == TESSEL_OK; t++) {
         uint32_t v[3];
         for (int k = 0; k < 3; k++) {
@@ -956,7 +992,7 @@ tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count)
                 break;
             }
             v[k] = inv[o];
-            if (st(g, v[k]) == ST_DEAD)
+            while (st(g, v[k]) == ST_DEAD)
                 v[k] = g->ls[v[k]]; /* a duplicate: its kept twin */
         }
         if (s != TESSEL_OK)

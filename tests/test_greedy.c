@@ -593,6 +593,60 @@ static void test_existing(void)
     tessel_cloud_free(&c);
 }
 
+/* Existing triangles that name the second of two coincident points: every
+ * point of the sphere is given twice, and the cap's triangles use the
+ * copies. The new triangles must use the copies too where they meet the
+ * cap (the originals are left out as duplicates), else the union would
+ * touch itself at points it does not share: a fuzzer's find. */
+static void test_existing_duplicates(void)
+{
+    tessel_cloud one, c;
+    CHECK(surf_sphere(&one, 0.08, 15) == TESSEL_OK);
+    size_t n = one.count;
+    CHECK(tessel_cloud_alloc(&c, 2 * n, 0, 0) == TESSEL_OK);
+    memcpy(c.xyz, one.xyz, 3 * n * sizeof *c.xyz);
+    memcpy(c.xyz + 3 * n, one.xyz, 3 * n * sizeof *c.xyz);
+    tessel_greedy_params p = tessel_greedy_params_default();
+    sink_buf all = {0};
+    tessel_triangle_sink sink = {sink_emit, &all};
+    CHECK(tessel_reconstruct_greedy(&one, &p, NULL, &sink, NULL) == TESSEL_OK);
+    uint32_t *cap = malloc(all.n * 3 * sizeof *cap);
+    size_t nc = 0;
+    for (size_t t = 0; t < all.n; t++) {
+        int up = 1;
+        for (int k = 0; k < 3; k++)
+            up &= one.xyz[3 * (size_t)all.t[3 * t + k] + 2] > 0.3f;
+        if (up) {
+            for (int k = 0; k < 3; k++)
+                cap[3 * nc + (size_t)k] = all.t[3 * t + k] + (uint32_t)n;
+            nc++;
+        }
+    }
+    CHECK(nc > 20);
+    p.existing = cap;
+    p.existing_count = nc;
+    sink_buf rest = {0};
+    tessel_triangle_sink sink2 = {sink_emit, &rest};
+    CHECK(tessel_reconstruct_greedy(&c, &p, NULL, &sink2, NULL) == TESSEL_OK);
+    uint32_t *both = malloc((rest.n + nc) * 3 * sizeof *both);
+    memcpy(both, cap, nc * 3 * sizeof *both);
+    memcpy(both + 3 * nc, rest.t, rest.n * 3 * sizeof *both);
+    tessel_mesh mb = mesh_of(&c, both, rest.n + nc);
+    tessel_mesh_report rb = check_mesh(&mb);
+    CHECK_MSG(tessel_mesh_report_valid(&rb) && rb.self_intersections == 0 &&
+                  rb.boundary_edges == 0 && rb.components == 1,
+              "existing on copies + new: valid %d, %zu self-intersections, %zu boundary edges, "
+              "%zu components",
+              tessel_mesh_report_valid(&rb), rb.self_intersections, rb.boundary_edges,
+              rb.components);
+    free(both);
+    free(cap);
+    free(all.t);
+    free(rest.t);
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&one);
+}
+
 static int cancel_at_half(void *user, const char *stage, double fraction)
 {
     (void)stage;
@@ -878,6 +932,7 @@ int main(void)
     test_duplicates_and_degenerate();
     test_options();
     test_existing();
+    test_existing_duplicates();
     test_streaming();
     test_flips();
     test_touching_spheres();
