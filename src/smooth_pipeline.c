@@ -194,11 +194,11 @@ static tessel_status components(const tessel_mesh *m, uint32_t **comp, size_t **
     return TESSEL_OK;
 }
 
-/* Whether the component of root r, of `count` triangles, is a stray piece
- * of a mesh of nt triangles (given `strays` of them in all). */
-static bool is_stray(size_t count, size_t nt, size_t strays)
+/* Whether a component of `count` triangles is small enough to be a stray
+ * piece of a mesh of nt triangles. */
+static bool is_stray(size_t count, size_t nt)
 {
-    return count && (double)count <= STRAY_FRACTION * (double)nt && strays <= STRAY_MAX;
+    return count && (double)count <= STRAY_FRACTION * (double)nt;
 }
 
 tessel_status tsl_stray_pieces(const tessel_mesh *m, size_t *strays, size_t *pieces)
@@ -209,7 +209,7 @@ tessel_status tsl_stray_pieces(const tessel_mesh *m, size_t *strays, size_t *pie
     if (st)
         return st;
     for (size_t v = 0; v < m->vertex_count; v++) {
-        n += is_stray(tris[v], m->triangle_count, 0);
+        n += is_stray(tris[v], m->triangle_count);
         all += tris[v] > 0;
     }
     *strays = n <= STRAY_MAX ? n : 0;
@@ -387,7 +387,7 @@ static tessel_status stray_sites(const tessel_mesh *m, site_list *out)
     for (size_t t = 0; t < nt; t++) {
         const uint32_t *c = m->triangles + 3 * t;
         uint32_t r = comp[c[0]];
-        if (!is_stray(tris[r], nt, strays))
+        if (!is_stray(tris[r], nt))
             continue;
         for (int i = 0; i < 3; i++) {
             double a[3], b[3], d[3];
