@@ -1003,6 +1003,22 @@ static bool rule_holds(const rf *r, uint32_t h)
                        : other_diagonal_shorter(pu, pv, pa, pb);
 }
 
+/* The edge map after the flip of {u, v} to {a, b}, T1 = (u, b, a) and T2 =
+ * (v, a, b); nothing when refinement keeps no map (the greedy flips). */
+static tessel_status flip_map(rf *r, uint32_t T1, uint32_t T2, uint32_t u, uint32_t v,
+                              uint32_t a, uint32_t b)
+{
+    if (!r->edges.slot)
+        return TESSEL_OK;
+    tessel_status st;
+    map_del(&r->edges, u, v);
+    if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) || (st = map_put(&r->edges, u, b, 3 * T1)) ||
+        (st = map_put(&r->edges, a, u, 3 * T1 + 2)) || (st = map_put(&r->edges, v, a, 3 * T2)) ||
+        (st = map_put(&r->edges, b, v, 3 * T2 + 2)))
+        return st;
+    return TESSEL_OK;
+}
+
 /* Flips the diagonal {u, v} of its two triangles when the rule asks for it
  * (r->delaunay: the opposite angles add up to more than pi; else the
  * paper's: the other diagonal is shorter) and the result is valid.
@@ -1081,13 +1097,8 @@ static tessel_status flip_edge(rf *r, worker *w, uint32_t h, bool *done, bool *a
         for (int k = 0; k < 6; k++)
             if (!push(&w->log, &w->nlog, &w->cap_log, rec[k]))
                 return TESSEL_ERR_NOMEM;
-    } else if (r->edges.slot) {
-        map_del(&r->edges, u, v);
-        if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) ||
-            (st = map_put(&r->edges, u, b, 3 * T1)) ||
-            (st = map_put(&r->edges, a, u, 3 * T1 + 2)) ||
-            (st = map_put(&r->edges, v, a, 3 * T2)) || (st = map_put(&r->edges, b, v, 3 * T2 + 2)))
-            return st;
+    } else if ((st = flip_map(r, T1, T2, u, v, a, b))) {
+        return st;
     }
     bool listed1, listed2;
     if ((st = grid_add(r, w, T1, false, &listed1)) || (st = grid_add(r, w, T2, false, &listed2)))
@@ -1257,6 +1268,21 @@ static seg_ref *blocks_done(const worker *ws, int nw, size_t *m)
     return order;
 }
 
+/* After a phase's merge: the workers' tails into *tail, their logs
+ * emptied for the next phase. */
+static tessel_status gather_tails(worker *ws, int nw, uint32_t **tail, size_t *ntail,
+                                  size_t *cap_tail)
+{
+    for (int t = 0; t < nw; t++) {
+        worker *w = &ws[t];
+        for (size_t k = 0; k < w->ntail; k++)
+            if (!push(tail, ntail, cap_tail, w->tail[k]))
+                return TESSEL_ERR_NOMEM;
+        w->nlog = w->nseg = w->ntail = 0;
+    }
+    return TESSEL_OK;
+}
+
 /* After a phase: the flips of every block, in key order, into the edge
  * map and the grid; the marks into look; the tails gathered. */
 static tessel_status merge_phase(rf *r, worker *ws, int nw, uint8_t *look, uint32_t **tail,
@@ -1275,15 +1301,8 @@ static tessel_status merge_phase(rf *r, worker *ws, int nw, uint8_t *look, uint3
             const uint32_t *x = w->log + f;
             const uint32_t top = (uint32_t)1 << 31;
             uint32_t T1 = x[0] & ~top, T2 = x[1] & ~top, u = x[2], v = x[3], a = x[4], b = x[5];
-            if (r->edges.slot) {
-                map_del(&r->edges, u, v);
-                if ((st = map_put(&r->edges, a, b, 3 * T1 + 1)) ||
-                    (st = map_put(&r->edges, u, b, 3 * T1)) ||
-                    (st = map_put(&r->edges, a, u, 3 * T1 + 2)) ||
-                    (st = map_put(&r->edges, v, a, 3 * T2)) ||
-                    (st = map_put(&r->edges, b, v, 3 * T2 + 2)))
-                    break;
-            }
+            if ((st = flip_map(r, T1, T2, u, v, a, b)))
+                break;
             /* A triangle one of whose flips had to be listed is listed at
              * its box as it ends the phase; the boxes of the others stayed
              * within cells where they are listed already. */
@@ -1292,16 +1311,13 @@ static tessel_status merge_phase(rf *r, worker *ws, int nw, uint8_t *look, uint3
         }
     }
     free(order);
-    for (int t = 0; t < nw && !st; t++) {
+    for (int t = 0; t < nw; t++) {
         worker *w = &ws[t];
         for (size_t k = 0; k < w->nnext; k++)
             look[w->next[k]] = 1;
-        for (size_t k = 0; k < w->ntail && !st; k++)
-            if (!push(tail, ntail, cap_tail, w->tail[k]))
-                st = TESSEL_ERR_NOMEM;
-        w->nlog = w->nseg = w->nnext = w->ntail = 0;
+        w->nnext = 0;
     }
-    return st;
+    return st ? st : gather_tails(ws, nw, tail, ntail, cap_tail);
 }
 
 static int cmp_u32(const void *a, const void *b)
@@ -1584,14 +1600,7 @@ static tessel_status split_merge(rf *r, worker *ws, int nw, const split_job *job
             st = split_again(r, &jobs[w->log[f]]);
     }
     free(order);
-    for (int t = 0; t < nw && !st; t++) {
-        worker *w = &ws[t];
-        for (size_t k = 0; k < w->ntail && !st; k++)
-            if (!push(tail, ntail, cap_tail, w->tail[k]))
-                st = TESSEL_ERR_NOMEM;
-        w->nlog = w->nseg = w->ntail = 0;
-    }
-    return st;
+    return st ? st : gather_tails(ws, nw, tail, ntail, cap_tail);
 }
 
 /* The splits of jobs[want[0 .. n)] (want in Morton order), in parallel
