@@ -24,11 +24,15 @@
  *      non-manifold element or self-intersection, and as many components
  *      as the reference. The pipeline is deterministic, so this is how
  *      much its result depends on the last bits of the input (--out DIR
- *      writes these meshes too).
+ *      writes these meshes too);
+ *   4. with --data DIR --renoise K: each NAME.pd.ply (the clean sample)
+ *      with K new draws of the noise of the .pd.n05 files (Gaussian, sigma
+ *      0.5% of the diagonal per axis; draw k uses seed k), against the same
+ *      targets: how the pipeline does on scans it was not tuned on.
  *
  * usage: bench_pipeline [--max N] [--runs R] [--threads T] [--refine R] [--refine-k K]
  *                       [--tile N] [--noise X] [--data DIR] [--out DIR] [--jitter K]
- *                       [--skip-sizes] */
+ *                       [--renoise K] [--skip-sizes] */
 #include "tessel.h"
 #include "bench_data.h"
 
@@ -233,11 +237,15 @@ static int meets_targets(const tessel_mesh *m, const tessel_mesh *ref, size_t re
     return ok;
 }
 
-static void run_jitter(const char *dir, const char *name, int copies, const char *out,
+/* copies of NAME.SUFFIX.ply, each moved by Gaussian noise of sigma times
+ * its diagonal per axis (copy k with seed k), through the pipeline; prints
+ * how many meet the targets. */
+static void run_copies(const char *dir, const char *name, const char *suffix, double sigma,
+                       const char *what, int copies, const char *out,
                        const tessel_smooth_recon_params *p)
 {
     char path[1024], ref_path[1024];
-    snprintf(path, sizeof path, "%s/%s.pd.n05.ply", dir, name);
+    snprintf(path, sizeof path, "%s/%s.%s.ply", dir, name, suffix);
     snprintf(ref_path, sizeof ref_path, "%s/%s.gt.ply", dir, name);
     tessel_cloud c;
     tessel_mesh ref;
@@ -272,21 +280,21 @@ static void run_jitter(const char *dir, const char *name, int copies, const char
     for (int k = 1; k <= copies; k++) {
         uint64_t s = (uint64_t)k * 0x9E3779B97F4A7C15ULL;
         for (size_t i = 0; i < 3 * c.count; i++)
-            c.xyz[i] = (float)(orig[i] + 2e-6 * diag * bench_gauss(&s));
+            c.xyz[i] = (float)(orig[i] + sigma * diag * bench_gauss(&s));
         tessel_mesh m;
         char label[128];
-        snprintf(label, sizeof label, "%s.pd.n05 jitter %d", name, k);
+        snprintf(label, sizeof label, "%s.%s %s %d", name, suffix, what, k);
         if (tessel_reconstruct_smooth(&c, p, NULL, &m, NULL) == TESSEL_OK) {
             met += meets_targets(&m, &ref, ref_components, label);
             if (out) {
                 char op[1024];
-                snprintf(op, sizeof op, "%s/%s.pd.n05.jitter%d.smooth.ply", out, name, k);
+                snprintf(op, sizeof op, "%s/%s.%s.%s%d.smooth.ply", out, name, suffix, what, k);
                 tessel_mesh_write(&m, op, NULL, NULL);
             }
         }
         tessel_mesh_free(&m);
     }
-    printf("%s.pd.n05: targets met in %d of %d jittered copies\n", name, met, copies);
+    printf("%s.%s: targets met in %d of %d copies (%s)\n", name, suffix, met, copies, what);
     free(orig);
     tessel_mesh_free(&ref);
     tessel_cloud_free(&c);
@@ -297,7 +305,7 @@ int main(int argc, char **argv)
     size_t max = 1000000;
     int runs = 3;
     const char *dir = NULL, *out = NULL;
-    int skip_sizes = 0, jitter = 0;
+    int skip_sizes = 0, jitter = 0, renoise = 0;
     tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--max") && i + 1 < argc)
@@ -322,6 +330,8 @@ int main(int argc, char **argv)
             i++;
         else if (!strcmp(argv[i], "--jitter") && i + 1 < argc)
             jitter = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "--renoise") && i + 1 < argc)
+            renoise = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--skip-sizes"))
             skip_sizes = 1;
         else {
@@ -329,7 +339,7 @@ int main(int argc, char **argv)
                     "usage: bench_pipeline [--max N] [--runs R (1..15)] [--threads T] [--refine R] "
                     "[--refine-k K] "
                     "[--tile N] [--noise X] [--data DIR] [--out DIR] [--jitter K] "
-                    "[--skip-sizes]\n");
+                    "[--renoise K] [--skip-sizes]\n");
             return 1;
         }
     }
@@ -348,7 +358,12 @@ int main(int argc, char **argv)
         if (jitter > 0) {
             printf("\nJittered copies of the noisy files (2e-6 of the diagonal)\n");
             for (size_t k = 0; k < 3; k++)
-                run_jitter(dir, names[k], jitter, out, &p);
+                run_copies(dir, names[k], "pd.n05", 2e-6, "jitter", jitter, out, &p);
+        }
+        if (renoise > 0) {
+            printf("\nNew noise draws on the clean samples (sigma 0.5%% of the diagonal)\n");
+            for (size_t k = 0; k < 3; k++)
+                run_copies(dir, names[k], "pd", 5e-3, "noise", renoise, out, &p);
         }
     }
     return 0;
