@@ -146,6 +146,12 @@ typedef struct af {
     uint32_t *vin, *vout; /* per point: border edge ending / starting there */
     af_edge *e;
     size_t ne, cap_e;
+    /* Ids of the edges not known to be closed, in increasing order (a
+     * closed edge stays closed): fill_holes runs each time the queue
+     * empties, once per component in a scene of thousands, and scanning
+     * every edge each time made it quadratic. */
+    uint32_t *open;
+    size_t n_open, cap_open;
     uint32_t *queue; /* ring buffer of edge ids */
     size_t q_head, q_count, q_cap;
     tsl_trigrid grid;
@@ -617,9 +623,11 @@ static tessel_status push_edge(af *s, uint32_t e)
 
 static tessel_status new_edge(af *s, uint32_t from, uint32_t to, uint32_t tri, uint32_t *id)
 {
-    if (s->ne + 1 > s->cap_e &&
-        tsl_grow((void **)&s->e, &s->cap_e, s->ne + 1, sizeof *s->e))
+    if ((s->ne + 1 > s->cap_e &&
+         tsl_grow((void **)&s->e, &s->cap_e, s->ne + 1, sizeof *s->e)) ||
+        tsl_grow((void **)&s->open, &s->cap_open, s->n_open + 1, sizeof *s->open))
         return TESSEL_ERR_NOMEM;
+    s->open[s->n_open++] = (uint32_t)s->ne;
     uint32_t id_ = (uint32_t)s->ne++;
     af_edge *e = &s->e[id_];
     e->from = from;
@@ -1662,6 +1670,7 @@ static void af_free(af *s)
     free(s->vin);
     free(s->vout);
     free(s->e);
+    free(s->open);
     free(s->queue);
     free(s->scratch_u);
     free(s->scratch_d);
@@ -2346,21 +2355,29 @@ static tessel_status fill_holes(af *s)
     if (!(s->max_hole_radius > 0.0))
         return TESSEL_OK;
     s->pass++;
-    size_t count = s->ne;
-    for (size_t i = 0; i < count; i++) {
-        if (s->e[i].state == EDGE_CLOSED || s->e[i].mark == s->pass)
+    /* The edges open when the pass starts, in id order; closed ones leave
+     * the list, and the edges closing adds go after them for the next
+     * pass. */
+    size_t count = s->n_open, kept = 0;
+    tessel_status st = TESSEL_OK;
+    for (size_t j = 0; j < count; j++) {
+        uint32_t i = s->open[j];
+        if (s->e[i].state == EDGE_CLOSED)
+            continue;
+        s->open[kept++] = i;
+        if (st || s->e[i].mark == s->pass)
             continue;
         size_t len;
-        if (!small_hole(s, (uint32_t)i, &len) || unchanged_hole(s, (uint32_t)i, len))
+        if (!small_hole(s, i, &len) || unchanged_hole(s, i, len))
             continue;
         uint32_t left;
-        tessel_status st = close_hole(s, (uint32_t)i, len, &left);
-        if (st)
-            return st;
-        if (left != NONE)
+        st = close_hole(s, i, len, &left);
+        if (!st && left != NONE)
             mark_unfilled(s, left);
     }
-    return TESSEL_OK;
+    memmove(s->open + kept, s->open + count, (s->n_open - count) * sizeof *s->open);
+    s->n_open = kept + (s->n_open - count);
+    return st;
 }
 
 static tessel_status run_fronts(af *s, const tessel_callbacks *cb)
