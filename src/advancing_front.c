@@ -146,12 +146,10 @@ typedef struct af {
     uint32_t *vin, *vout; /* per point: border edge ending / starting there */
     af_edge *e;
     size_t ne, cap_e;
-    /* Ids of the edges not known to be closed, in increasing order (a
-     * closed edge stays closed): fill_holes runs each time the queue
-     * empties, once per component in a scene of thousands, and scanning
-     * every edge each time made it quadratic. */
-    uint32_t *open;
-    size_t n_open, cap_open;
+    /* Edges made since the last hole-filling pass, in id order: only
+     * their loops can get another verdict (fill_holes). */
+    uint32_t *fresh;
+    size_t n_fresh, cap_fresh;
     uint32_t *queue; /* ring buffer of edge ids */
     size_t q_head, q_count, q_cap;
     tsl_trigrid grid;
@@ -625,9 +623,9 @@ static tessel_status new_edge(af *s, uint32_t from, uint32_t to, uint32_t tri, u
 {
     if ((s->ne + 1 > s->cap_e &&
          tsl_grow((void **)&s->e, &s->cap_e, s->ne + 1, sizeof *s->e)) ||
-        tsl_grow((void **)&s->open, &s->cap_open, s->n_open + 1, sizeof *s->open))
+        tsl_grow((void **)&s->fresh, &s->cap_fresh, s->n_fresh + 1, sizeof *s->fresh))
         return TESSEL_ERR_NOMEM;
-    s->open[s->n_open++] = (uint32_t)s->ne;
+    s->fresh[s->n_fresh++] = (uint32_t)s->ne;
     uint32_t id_ = (uint32_t)s->ne++;
     af_edge *e = &s->e[id_];
     e->from = from;
@@ -1670,7 +1668,7 @@ static void af_free(af *s)
     free(s->vin);
     free(s->vout);
     free(s->e);
-    free(s->open);
+    free(s->fresh);
     free(s->queue);
     free(s->scratch_u);
     free(s->scratch_d);
@@ -2350,22 +2348,57 @@ static void mark_unfilled(af *s, uint32_t id)
     } while (e != id);
 }
 
+/* The lowest edge id of the loop through edge id, marking its edges with
+ * the current pass. */
+static uint32_t loop_first(af *s, uint32_t id)
+{
+    uint32_t first = id, e = id;
+    do {
+        s->e[e].mark = s->pass;
+        first = e < first ? e : first;
+        e = s->e[e].next;
+    } while (e != id);
+    return first;
+}
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* Closes the small holes among the border loops (small_hole), each loop in
+ * the order of its lowest edge id. A loop is looked at only when it has an
+ * edge made since the last pass: every change of a loop makes an edge, a
+ * closed edge stays closed, and the verdict on an unchanged loop cannot
+ * change (its geometry is the same, a filling that failed is not tried
+ * again, and points inside it only stop being free). Looking at every loop
+ * at every pass made this quadratic in a scene of thousands of pieces,
+ * where the fronts stop once per piece. */
 static tessel_status fill_holes(af *s)
 {
-    if (!(s->max_hole_radius > 0.0))
+    if (!(s->max_hole_radius > 0.0)) {
+        s->n_fresh = 0;
         return TESSEL_OK;
+    }
+    /* The loops to look at, by their lowest edge id. The edges made while
+     * holes are closed go to the next pass. */
+    uint32_t *loops = s->fresh;
+    size_t count = 0, n = s->n_fresh;
+    s->fresh = NULL;
+    s->n_fresh = s->cap_fresh = 0;
     s->pass++;
-    /* The edges open when the pass starts, in id order; closed ones leave
-     * the list, and the edges closing adds go after them for the next
-     * pass. */
-    size_t count = s->n_open, kept = 0;
+    for (size_t j = 0; j < n; j++) {
+        uint32_t i = loops[j];
+        if (s->e[i].state != EDGE_CLOSED && s->e[i].mark != s->pass)
+            loops[count++] = loop_first(s, i);
+    }
+    qsort(loops, count, sizeof *loops, cmp_u32);
+    s->pass++;
     tessel_status st = TESSEL_OK;
-    for (size_t j = 0; j < count; j++) {
-        uint32_t i = s->open[j];
-        if (s->e[i].state == EDGE_CLOSED)
-            continue;
-        s->open[kept++] = i;
-        if (st || s->e[i].mark == s->pass)
+    for (size_t j = 0; j < count && !st; j++) {
+        uint32_t i = loops[j];
+        if (s->e[i].state == EDGE_CLOSED || s->e[i].mark == s->pass)
             continue;
         size_t len;
         if (!small_hole(s, i, &len) || unchanged_hole(s, i, len))
@@ -2375,8 +2408,7 @@ static tessel_status fill_holes(af *s)
         if (!st && left != NONE)
             mark_unfilled(s, left);
     }
-    memmove(s->open + kept, s->open + count, (s->n_open - count) * sizeof *s->open);
-    s->n_open = kept + (s->n_open - count);
+    free(loops);
     return st;
 }
 
