@@ -2393,7 +2393,8 @@ static tessel_status fill_holes(af *s)
         if (s->e[i].state != EDGE_CLOSED && s->e[i].mark != s->pass)
             loops[count++] = loop_first(s, i);
     }
-    qsort(loops, count, sizeof *loops, cmp_u32);
+    if (count > 1)
+        qsort(loops, count, sizeof *loops, cmp_u32);
     s->pass++;
     tessel_status st = TESSEL_OK;
     for (size_t j = 0; j < count && !st; j++) {
