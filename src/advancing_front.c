@@ -1543,15 +1543,6 @@ static void flip_triangle(uint32_t v[3])
     v[2] = tmp;
 }
 
-static uint32_t uf_find(uint32_t *parent, uint32_t x)
-{
-    while (parent[x] != x) {
-        parent[x] = parent[parent[x]];
-        x = parent[x];
-    }
-    return x;
-}
-
 /* Closed components outward by signed volume; open ones by the points'
  * normals when there are any, else by their signed volume about their
  * centroid (right for nearly closed surfaces, arbitrary for flat ones).
@@ -1577,21 +1568,21 @@ static tessel_status orient_components(af *s)
         if (v[0] == NONE)
             continue;
         for (int i = 1; i < 3; i++) {
-            uint32_t x = uf_find(parent, v[0]), y = uf_find(parent, v[i]);
+            uint32_t x = tsl_uf_find(parent, v[0]), y = tsl_uf_find(parent, v[i]);
             if (x != y)
                 parent[x < y ? y : x] = x < y ? x : y;
         }
     }
     for (size_t i = 0; i < s->ne; i++)
         if (s->e[i].state != EDGE_CLOSED)
-            open[uf_find(parent, s->e[i].from)] = 1;
+            open[tsl_uf_find(parent, s->e[i].from)] = 1;
     /* Centroids, relative to each component's root vertex (accuracy far
      * from the origin). */
     for (size_t t = 0; t < s->nt; t++) {
         const uint32_t *v = s->tri + 3 * t;
         if (v[0] == NONE)
             continue;
-        uint32_t root = uf_find(parent, v[0]);
+        uint32_t root = tsl_uf_find(parent, v[0]);
         double o[3], p[3];
         point(s, root, o);
         for (int i = 0; i < 3; i++) {
@@ -1605,7 +1596,7 @@ static tessel_status orient_components(af *s)
         const uint32_t *v = s->tri + 3 * t;
         if (v[0] == NONE)
             continue;
-        uint32_t root = uf_find(parent, v[0]);
+        uint32_t root = tsl_uf_find(parent, v[0]);
         double p[3][3], o[3];
         const double *cs = centre + 4 * (size_t)root;
         point(s, root, o);
@@ -1635,7 +1626,7 @@ static tessel_status orient_components(af *s)
             s->stats.flipped_components++;
     for (size_t t = 0; t < s->nt; t++) {
         uint32_t *v = s->tri + 3 * t;
-        if (v[0] != NONE && score[uf_find(parent, v[0])] < 0.0)
+        if (v[0] != NONE && score[tsl_uf_find(parent, v[0])] < 0.0)
             flip_triangle(v);
     }
     free(parent);
@@ -2361,12 +2352,6 @@ static uint32_t loop_first(af *s, uint32_t id)
     return first;
 }
 
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return (x > y) - (x < y);
-}
-
 /* Closes the small holes among the border loops (small_hole), each loop in
  * the order of its lowest edge id. A loop is looked at only when it has an
  * edge made since the last pass: every change of a loop makes an edge, a
@@ -2394,7 +2379,7 @@ static tessel_status fill_holes(af *s)
             loops[count++] = loop_first(s, i);
     }
     if (count > 1)
-        qsort(loops, count, sizeof *loops, cmp_u32);
+        qsort(loops, count, sizeof *loops, tsl_cmp_u32);
     s->pass++;
     tessel_status st = TESSEL_OK;
     for (size_t j = 0; j < count && !st; j++) {
@@ -3092,7 +3077,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
         parent[i] = (uint32_t)i;
     for (size_t t = 0; t < count; t++)
         for (int i = 1; i < 3; i++) {
-            uint32_t x = uf_find(parent, tri[3 * t]), y = uf_find(parent, tri[3 * t + i]);
+            uint32_t x = tsl_uf_find(parent, tri[3 * t]), y = tsl_uf_find(parent, tri[3 * t + i]);
             if (x != y)
                 parent[x < y ? y : x] = x < y ? x : y;
         }
@@ -3100,7 +3085,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
     for (size_t i = 0; i < s->n; i++)
         cid[i] = NONE;
     for (size_t t = 0; t < count; t++) {
-        uint32_t r = uf_find(parent, tri[3 * t]);
+        uint32_t r = tsl_uf_find(parent, tri[3 * t]);
         if (cid[r] == NONE)
             cid[r] = (uint32_t)ncomp++;
         comp[t] = cid[r];

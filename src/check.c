@@ -74,19 +74,11 @@ int tessel_mesh_report_valid(const tessel_mesh_report *r)
 /* Small helpers                                                             */
 /* ------------------------------------------------------------------------ */
 
-/* Union-find with path halving; the smaller index becomes the root. */
-static uint32_t uf_find(uint32_t *p, uint32_t x)
-{
-    while (p[x] != x) {
-        p[x] = p[p[x]];
-        x = p[x];
-    }
-    return x;
-}
+/* Union-find: the smaller root becomes the root. */
 static void uf_unite(uint32_t *p, uint32_t a, uint32_t b)
 {
-    a = uf_find(p, a);
-    b = uf_find(p, b);
+    a = tsl_uf_find(p, a);
+    b = tsl_uf_find(p, b);
     if (a < b)
         p[b] = a;
     else if (b < a)
@@ -1021,11 +1013,11 @@ static tessel_status topology(const tessel_mesh *m, const uint8_t *kind, tessel_
 
     size_t ncomp = 0;
     for (size_t f = 0; f < nf; f++)
-        if (kind[f] != KIND_REPEATED && uf_find(comp, (uint32_t)f) == f)
+        if (kind[f] != KIND_REPEATED && tsl_uf_find(comp, (uint32_t)f) == f)
             ncomp++;
     size_t nloops = 0;
     for (size_t v = 0; v < nv; v++)
-        if (on_boundary[v] && uf_find(bnd, (uint32_t)v) == v)
+        if (on_boundary[v] && tsl_uf_find(bnd, (uint32_t)v) == v)
             nloops++;
 
     /* Vertex manifoldness: the link (opposite edges of the incident
@@ -1093,7 +1085,7 @@ static tessel_status topology(const tessel_mesh *m, const uint8_t *kind, tessel_
                 if (++ldeg[lo] > 2)
                     ok = false;
             }
-            uint32_t ra = uf_find(lpar, pos[0]), rb = uf_find(lpar, pos[1]);
+            uint32_t ra = tsl_uf_find(lpar, pos[0]), rb = tsl_uf_find(lpar, pos[1]);
             if (ra != rb) {
                 uf_unite(lpar, ra, rb);
                 groups--;

@@ -88,6 +88,12 @@ void *tsl_calloc_array(size_t count, size_t size)
     return advise_huge(calloc(count ? count : 1, size ? size : 1), count * size);
 }
 
+int tsl_cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
 double tsl_seconds(void)
 {
     struct timespec ts;

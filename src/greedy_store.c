@@ -664,15 +664,6 @@ tessel_status tsl_gp_sweep(gp *g, int all)
 
 /* ---- components: union-find over labels ---- */
 
-static uint32_t uf_find(gp *g, uint32_t x)
-{
-    while (g->uf[x] != x) {
-        g->uf[x] = g->uf[g->uf[x]];
-        x = g->uf[x];
-    }
-    return x;
-}
-
 static tessel_status uf_new(gp *g, uint32_t *label)
 {
     if (grow((void **)&g->uf, &g->uf_cap, g->uf_count + 1, sizeof *g->uf))
@@ -685,8 +676,8 @@ static tessel_status uf_new(gp *g, uint32_t *label)
 
 static void uf_union(gp *g, uint32_t a, uint32_t b)
 {
-    a = uf_find(g, a);
-    b = uf_find(g, b);
+    a = tsl_uf_find(g->uf, a);
+    b = tsl_uf_find(g->uf, b);
     if (a != b)
         g->uf[a < b ? b : a] = a < b ? a : b;
 }

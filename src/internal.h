@@ -100,6 +100,19 @@ static inline void tsl_load(const float *p, double out[3])
     out[2] = p[2];
 }
 
+/* Union-find: the root of x, halving the path to it. */
+static inline uint32_t tsl_uf_find(uint32_t *parent, uint32_t x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    return x;
+}
+
+/* qsort comparison of uint32_t values, ascending. */
+int tsl_cmp_u32(const void *a, const void *b);
+
 /* Eigen-decomposition of a symmetric 3x3 matrix (row-major a[9]).
  * Eigenvalues ascending in w[3]; column i of v (v[3*r+i]) is the unit
  * eigenvector of w[i]. Jacobi rotations: accurate for near-degenerate

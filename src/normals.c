@@ -125,15 +125,6 @@ static void pca_normal(const float *xyz, size_t i, const uint32_t *nb, size_t k,
 
 /* ---- orientation ---- */
 
-static uint32_t uf_find(uint32_t *parent, uint32_t x)
-{
-    while (parent[x] != x) {
-        parent[x] = parent[parent[x]]; /* path halving */
-        x = parent[x];
-    }
-    return x;
-}
-
 /* Indexed binary min-heap on (key, node). */
 typedef struct prim_heap {
     uint32_t *heap; /* nodes */
@@ -288,7 +279,7 @@ static tessel_status orient_normals(const float *xyz, size_t n, const uint32_t *
         parent[i] = (uint32_t)i;
     for (size_t i = 0; i < n; i++)
         for (size_t e = 0; e < k; e++) {
-            uint32_t a = uf_find(parent, (uint32_t)i), b = uf_find(parent, nb[i * k + e]);
+            uint32_t a = tsl_uf_find(parent, (uint32_t)i), b = tsl_uf_find(parent, nb[i * k + e]);
             if (a != b) {
                 if (a < b)
                     parent[b] = a;
@@ -308,7 +299,7 @@ static tessel_status orient_normals(const float *xyz, size_t n, const uint32_t *
      * the component's highest point (lowest index among equals) until the
      * traversal of that component reads it. */
     for (size_t i = 0; i < n; i++) {
-        uint32_t r = uf_find(parent, (uint32_t)i);
+        uint32_t r = tsl_uf_find(parent, (uint32_t)i);
         if (r == i || xyz[3 * i + 2] > xyz[3 * (size_t)from[r] + 2])
             from[r] = (uint32_t)i;
     }

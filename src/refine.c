@@ -1320,17 +1320,11 @@ static tessel_status merge_phase(rf *r, worker *ws, int nw, uint8_t *look, uint3
     return st ? st : gather_tails(ws, nw, tail, ntail, cap_tail);
 }
 
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return (x > y) - (x < y);
-}
-
 /* The serial tail of a pass: the pairs tail[0 .. n), sorted, in order. */
 static tessel_status flip_tail(rf *r, uint32_t *tail, size_t n, uint8_t *look, size_t *flips)
 {
     if (n)
-        qsort(tail, n, sizeof *tail, cmp_u32);
+        qsort(tail, n, sizeof *tail, tsl_cmp_u32);
     worker *w = r->serial;
     for (size_t k = 0; k < n; k++) {
         uint32_t h = tail[k], g = r->twin[h];
@@ -1688,7 +1682,7 @@ static tessel_status split_passes(rf *r, const split_job *jobs, const uint32_t *
     }
     /* The tail in the jobs' order. */
     if (!st && ntail)
-        qsort(tail, ntail, sizeof *tail, cmp_u32);
+        qsort(tail, ntail, sizeof *tail, tsl_cmp_u32);
     for (size_t k = 0; k < ntail && !st; k++) {
         bool done_split;
         const split_job *jb = &jobs[tail[k]];

@@ -152,15 +152,6 @@ static tessel_status star_normals(tessel_mesh *m)
 #define STRAY_WEIGHT 16
 #define STRAY_MAX 8
 
-static uint32_t uf_root(uint32_t *parent, uint32_t x)
-{
-    while (parent[x] != x) {
-        parent[x] = parent[parent[x]];
-        x = parent[x];
-    }
-    return x;
-}
-
 /* The triangles' components (by shared vertices): comp[v] is the root
  * vertex of v's component (for vertices on a triangle) and tris[root] its
  * triangle count. */
@@ -178,15 +169,15 @@ static tessel_status components(const tessel_mesh *m, uint32_t **comp, size_t **
         parent[v] = (uint32_t)v;
     for (size_t t = 0; t < nt; t++) {
         const uint32_t *c = m->triangles + 3 * t;
-        uint32_t r0 = uf_root(parent, c[0]);
+        uint32_t r0 = tsl_uf_find(parent, c[0]);
         for (int i = 1; i < 3; i++) {
-            uint32_t ri = uf_root(parent, c[i]);
+            uint32_t ri = tsl_uf_find(parent, c[i]);
             if (ri != r0)
                 parent[ri] = r0;
         }
     }
     for (size_t v = 0; v < nv; v++)
-        parent[v] = uf_root(parent, (uint32_t)v);
+        parent[v] = tsl_uf_find(parent, (uint32_t)v);
     for (size_t t = 0; t < nt; t++)
         count[parent[m->triangles[3 * t]]]++;
     *comp = parent;
@@ -319,14 +310,14 @@ static tessel_status hole_sites(const tessel_mesh *m, site_list *out)
         if (bsearch(&twin, keys, 3 * nt, sizeof *keys, cmp_u64))
             continue;
         bnext[a] = b;
-        uint32_t ra = uf_root(parent, a), rb = uf_root(parent, b);
+        uint32_t ra = tsl_uf_find(parent, a), rb = tsl_uf_find(parent, b);
         if (ra != rb)
             parent[ra] = rb;
     }
     for (size_t v = 0; v < nv; v++) {
         if (bnext[v] == TESSEL_NONE)
             continue;
-        uint32_t r = uf_root(parent, (uint32_t)v);
+        uint32_t r = tsl_uf_find(parent, (uint32_t)v);
         double a[3], b[3], d[3];
         tsl_load(m->xyz + 3 * v, a);
         tsl_load(m->xyz + 3 * (size_t)bnext[v], b);
@@ -342,7 +333,7 @@ static tessel_status hole_sites(const tessel_mesh *m, site_list *out)
     for (size_t v = 0; v < nv; v++) {
         if (bnext[v] == TESSEL_NONE)
             continue;
-        uint32_t r = uf_root(parent, (uint32_t)v);
+        uint32_t r = tsl_uf_find(parent, (uint32_t)v);
         double a[3], d[3];
         tsl_load(m->xyz + 3 * v, a);
         tsl_sub(a, cen + 3 * (size_t)r, d);
