@@ -734,32 +734,30 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     t = tsl_seconds();
     st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, mesh, &s.front);
     /* Holes left: the front again around them with extra representatives,
-     * the rest of the mesh kept as it is (every result is valid). In a
-     * scene of many pieces (a room scan) most borders are the scan's own,
-     * and every attempt costs a front over the whole cloud: there the
-     * whole front does not run again, and the local attempts stop at the
-     * first that fails (on room_small.grid the whole-front attempts took
-     * 0.4 s of the front's 1.5 s, for 1.541% border edges after
-     * refinement instead of 1.476%; on four copies of it side by side,
-     * the local attempts took 7 s after a first front of 0.7 s, and none
-     * was kept). */
+     * the rest of the mesh kept as it is (every result is valid). Not in a
+     * scene of many pieces (a room scan): most of its borders are the
+     * scan's own, every attempt costs a front over the whole cloud, and the
+     * attempts leave more border edges than they close. On room_small.grid
+     * moved by three rigid shifts, on 2 x 2 and on 3 x 3 copies of it, the
+     * first local attempt added 23-33% border edges and was dropped every
+     * time; only the unmoved file came out 5% better, by chance (the
+     * front's choices follow the last bits of the coordinates). */
     size_t strays, pieces = 0;
     if (!st)
         st = tsl_stray_pieces(mesh, &strays, &pieces);
-    bool scene = pieces > STRAY_MAX;
-    int max_failed = scene ? 1 : 2;
-    if (!st && !scene)
+    bool repair = pieces <= STRAY_MAX;
+    if (!st && repair)
         st = repair_holes(global_repairs, COUNT(global_repairs), 1, mesh, &smoothed, projector,
                           &p.front, callbacks, &reps, &lines, &s.front);
-    if (!st)
-        st = repair_holes(local_repairs, COUNT(local_repairs), max_failed, mesh, &smoothed,
-                          projector, &p.front, callbacks, &reps, &lines, &s.front);
+    if (!st && repair)
+        st = repair_holes(local_repairs, COUNT(local_repairs), 2, mesh, &smoothed, projector,
+                          &p.front, callbacks, &reps, &lines, &s.front);
     if (!st && lines)
         st = repair_orientation(mesh, &reps, lines, &p.front, callbacks, &s.front,
                                 &s.reoriented);
-    if (!st && s.reoriented)
-        st = repair_holes(local_repairs, COUNT(local_repairs), max_failed, mesh, &smoothed,
-                          projector, &p.front, callbacks, &reps, &lines, &s.front);
+    if (!st && repair && s.reoriented)
+        st = repair_holes(local_repairs, COUNT(local_repairs), 2, mesh, &smoothed, projector,
+                          &p.front, callbacks, &reps, &lines, &s.front);
     free(lines);
     if (st)
         goto fail;
