@@ -421,116 +421,142 @@ done:
     return st;
 }
 
+/* The points densify_holes adds around one site. */
+typedef struct site_extra {
+    float *xyz, *nrm; /* 3 floats per point */
+    size_t n, cap_xyz, cap_nrm;
+} site_extra;
+
+/* The points of the smoothed cloud (kd-tree cix) within a mean edge of
+ * site x's ball, projected by Q, each at least fraction times the site's
+ * mean edge from every representative (kd-tree rix; normals rnormals,
+ * which orient the new normals, or NULL) and from the points added
+ * before it, into *out. */
+static tessel_status site_points(const site *x, const tessel_index *cix, const tessel_index *rix,
+                                 const float *smoothed, const tessel_projector *projector,
+                                 const float *rnormals, double fraction, site_extra *out)
+{
+    double radius = x->reach + x->mean, gap2 = (fraction * x->mean) * (fraction * x->mean);
+    float q[3] = {(float)x->c[0], (float)x->c[1], (float)x->c[2]};
+    size_t found = tessel_index_radius(cix, q, (float)radius, NULL, NULL, 0);
+    uint32_t *near = tsl_alloc_array(found + 1, sizeof *near);
+    if (!near)
+        return TESSEL_ERR_NOMEM;
+    found = tessel_index_radius(cix, q, (float)radius, near, NULL, found);
+    tessel_status st = TESSEL_OK;
+    for (size_t i = 0; i < found && !st; i++) {
+        const float *p = smoothed + 3 * (size_t)near[i];
+        uint32_t j;
+        float d2;
+        if (tessel_index_knn(rix, p, 1, &j, &d2) == 1 && (double)d2 < gap2)
+            continue;
+        bool close = false;
+        for (size_t e = 0; e < out->n && !close; e++) {
+            double dx = out->xyz[3 * e] - p[0], dy = out->xyz[3 * e + 1] - p[1],
+                   dz = out->xyz[3 * e + 2] - p[2];
+            close = dx * dx + dy * dy + dz * dz < gap2;
+        }
+        if (close)
+            continue;
+        float at[3], nrm[3];
+        if (tessel_project(projector, p, at, nrm, NULL) != TESSEL_OK)
+            continue;
+        if ((st = tsl_grow((void **)&out->xyz, &out->cap_xyz, out->n + 1, 3 * sizeof *out->xyz)) ||
+            (st = tsl_grow((void **)&out->nrm, &out->cap_nrm, out->n + 1, 3 * sizeof *out->nrm)))
+            break;
+        /* Oriented like the nearest representative's normal when the
+         * representatives have oriented normals. */
+        if (rnormals && tessel_index_knn(rix, at, 1, &j, &d2) == 1) {
+            const float *rn = rnormals + 3 * (size_t)j;
+            if (rn[0] * nrm[0] + rn[1] * nrm[1] + rn[2] * nrm[2] < 0.0f)
+                for (int k = 0; k < 3; k++)
+                    nrm[k] = -nrm[k];
+        }
+        memcpy(out->xyz + 3 * out->n, at, sizeof at);
+        memcpy(out->nrm + 3 * out->n, nrm, sizeof nrm);
+        out->n++;
+    }
+    free(near);
+    return st;
+}
+
 /* Adds to reps points of the smoothed cloud around the small holes and the
- * stray pieces of mesh (hole_sites, stray_sites), projected by Q (which
- * also gives their normal lines), each at least fraction times the site's
- * mean edge from every representative and from the points added before
- * it. reps->normals (oriented like the nearest representative's) or else
- * *lines grow with them. *added tells how many; clear[v] (when clear is
- * not NULL) is set for the representatives within `clearing` mean edges
- * of the ball of each site. */
+ * stray pieces of mesh (hole_sites, stray_sites; site_points, the sites in
+ * parallel, the points in site order whatever the thread count).
+ * reps->normals or else *lines grow with them. *added tells how many;
+ * clear[v] (when clear is not NULL) is set for the representatives within
+ * `clearing` mean edges of the ball of each site. */
 static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smoothed,
                                    const tessel_projector *projector, double fraction,
-                                   double clearing, tessel_cloud *reps, float **lines,
-                                   uint8_t *clear, size_t *added)
+                                   double clearing, int threads, tessel_cloud *reps,
+                                   float **lines, uint8_t *clear, size_t *added)
 {
     *added = 0;
     site_list sites = {NULL, 0, 0};
-    float *extra = NULL, *extra_n = NULL;
-    uint32_t *near = NULL;
-    size_t n_extra = 0, cap_extra = 0, cap_extra_n = 0, cap_near = 0;
+    site_extra *ex = NULL;
     /* The smoothed cloud's kd-tree is the projector's (made over it). */
     const tessel_index *cix = tsl_projector_index(projector, smoothed->xyz, smoothed->count);
     tessel_index *rix = NULL;
     tessel_status st = TESSEL_ERR_INVALID_ARG;
-    if (!cix || (st = hole_sites(m, &sites)) || (st = stray_sites(m, &sites)))
+    if (!cix || (st = hole_sites(m, &sites)) || (st = stray_sites(m, &sites)) || !sites.n ||
+        (st = tessel_index_build(&rix, reps->xyz, reps->count)))
         goto done;
+    if (!(ex = tsl_calloc_array(sites.n, sizeof *ex))) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    long long count = (long long)sites.n;
+    int failed = 0;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(threads)) \
+    reduction(| : failed)
+    for (long long x = 0; x < count; x++)
+        failed |= site_points(&sites.s[x], cix, rix, smoothed->xyz, projector, reps->normals,
+                              fraction, &ex[x]) != TESSEL_OK;
+    if (failed) {
+        st = TESSEL_ERR_NOMEM; /* site_points' only failure */
+        goto done;
+    }
+    size_t n_extra = 0;
     for (size_t x = 0; x < sites.n && !st; x++) {
-        /* The smoothed points within a mean edge of the site's ball. */
+        n_extra += ex[x].n;
         const double *c = sites.s[x].c;
-        double mean = sites.s[x].mean, radius = sites.s[x].reach + mean;
-        if (!rix && (st = tessel_index_build(&rix, reps->xyz, reps->count)))
-            break;
         float q[3] = {(float)c[0], (float)c[1], (float)c[2]};
-        size_t found = tessel_index_radius(cix, q, (float)radius, NULL, NULL, 0);
-        if (found > cap_near) {
-            free(near);
-            cap_near = found;
-            if (!(near = tsl_alloc_array(cap_near, sizeof *near))) {
-                st = TESSEL_ERR_NOMEM;
-                break;
-            }
-        }
-        found = tessel_index_radius(cix, q, (float)radius, near, NULL, found);
-        if (clear && (st = mark_clear(rix, q, sites.s[x].reach + clearing * mean, clear)))
-            break;
-        double gap2 = (fraction * mean) * (fraction * mean);
-        size_t first = n_extra;
-        for (size_t i = 0; i < found && !st; i++) {
-            const float *p = smoothed->xyz + 3 * (size_t)near[i];
-            uint32_t j;
-            float d2;
-            if (tessel_index_knn(rix, p, 1, &j, &d2) == 1 && (double)d2 < gap2)
-                continue;
-            bool close = false;
-            for (size_t e = first; e < n_extra && !close; e++) {
-                double dx = extra[3 * e] - p[0], dy = extra[3 * e + 1] - p[1],
-                       dz = extra[3 * e + 2] - p[2];
-                close = dx * dx + dy * dy + dz * dz < gap2;
-            }
-            if (close)
-                continue;
-            float out[3], nrm[3];
-            if (tessel_project(projector, p, out, nrm, NULL) != TESSEL_OK)
-                continue;
-            if ((st = tsl_grow((void **)&extra, &cap_extra, n_extra + 1, 3 * sizeof *extra)))
-                break;
-            if ((st = tsl_grow((void **)&extra_n, &cap_extra_n, n_extra + 1,
-                               3 * sizeof *extra_n)))
-                break;
-            memcpy(extra + 3 * n_extra, out, sizeof out);
-            /* Oriented like the nearest representative's normal when the
-             * representatives have oriented normals. */
-            if (reps->normals && tessel_index_knn(rix, out, 1, &j, &d2) == 1) {
-                const float *rn = reps->normals + 3 * (size_t)j;
-                if (rn[0] * nrm[0] + rn[1] * nrm[1] + rn[2] * nrm[2] < 0.0f)
-                    for (int k = 0; k < 3; k++)
-                        nrm[k] = -nrm[k];
-            }
-            memcpy(extra_n + 3 * n_extra, nrm, sizeof nrm);
-            n_extra++;
-        }
+        if (clear)
+            st = mark_clear(rix, q, sites.s[x].reach + clearing * sites.s[x].mean, clear);
     }
     if (st || !n_extra)
         goto done;
-    {
-        size_t n = reps->count + n_extra;
-        float *xyz = realloc(reps->xyz, 3 * n * sizeof *xyz);
-        if (!xyz) {
+    size_t n = reps->count + n_extra;
+    float *xyz = realloc(reps->xyz, 3 * n * sizeof *xyz);
+    if (!xyz) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    reps->xyz = xyz;
+    float **nn = reps->normals ? &reps->normals : *lines ? lines : NULL;
+    if (nn) {
+        float *grown = realloc(*nn, 3 * n * sizeof **nn);
+        if (!grown) {
             st = TESSEL_ERR_NOMEM;
             goto done;
         }
-        reps->xyz = xyz;
-        memcpy(reps->xyz + 3 * reps->count, extra, 3 * n_extra * sizeof *extra);
-        float **nn = reps->normals ? &reps->normals : *lines ? lines : NULL;
-        if (nn) {
-            float *grown = realloc(*nn, 3 * n * sizeof **nn);
-            if (!grown) {
-                st = TESSEL_ERR_NOMEM;
-                goto done;
-            }
-            *nn = grown;
-            memcpy(*nn + 3 * reps->count, extra_n, 3 * n_extra * sizeof *extra_n);
-        }
-        reps->count = n;
-        *added = n_extra;
+        *nn = grown;
     }
+    for (size_t x = 0, at = reps->count; x < sites.n; at += ex[x].n, x++) {
+        memcpy(reps->xyz + 3 * at, ex[x].xyz, 3 * ex[x].n * sizeof *xyz);
+        if (nn)
+            memcpy(*nn + 3 * at, ex[x].nrm, 3 * ex[x].n * sizeof *xyz);
+    }
+    reps->count = n;
+    *added = n_extra;
 done:
+    for (size_t x = 0; ex && x < sites.n; x++) {
+        free(ex[x].xyz);
+        free(ex[x].nrm);
+    }
+    free(ex);
     free(sites.s);
     tessel_index_destroy(rix);
-    free(extra);
-    free(extra_n);
-    free(near);
     return st;
 }
 
@@ -565,8 +591,8 @@ static tessel_status repair_holes(const double (*repairs)[2], size_t count, int 
             break;
         }
         bool all = isinf(repairs[f][1]);
-        if ((st = densify_holes(mesh, smoothed, projector, repairs[f][0], repairs[f][1], reps,
-                                lines, all ? NULL : clear, &added)) ||
+        if ((st = densify_holes(mesh, smoothed, projector, repairs[f][0], repairs[f][1],
+                                front->threads, reps, lines, all ? NULL : clear, &added)) ||
             !added)
             continue;
         size_t kept = 0;
