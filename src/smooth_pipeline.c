@@ -543,6 +543,8 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
         *nn = grown;
     }
     for (size_t x = 0, at = reps->count; x < sites.n; at += ex[x].n, x++) {
+        if (!ex[x].n)
+            continue; /* its arrays are NULL, which memcpy may not take */
         memcpy(reps->xyz + 3 * at, ex[x].xyz, 3 * ex[x].n * sizeof *xyz);
         if (nn)
             memcpy(*nn + 3 * at, ex[x].nrm, 3 * ex[x].n * sizeof *xyz);
