@@ -2645,12 +2645,16 @@ static int tile_progress(void *data, const char *stage, double fraction)
     return 0;
 }
 
+static tessel_status place_start(af *s, const uint32_t *start, size_t count);
+
 /* The front of one tile: points ids[0 .. m) of g, whose neighbour lists
  * keep the neighbours in the same tile (local[] maps a point to its place
- * in its tile). */
+ * in its tile), from the starting triangles start[0 .. nstart) (local
+ * ids) when there are any. */
 static tessel_status tile_front(const af *g, const tessel_front_params *p, const uint32_t *ids,
                                 size_t m, uint32_t tile, const uint32_t *tile_of,
-                                const uint32_t *local, const tessel_callbacks *cb, af *t)
+                                const uint32_t *local, const uint32_t *start, size_t nstart,
+                                const tessel_callbacks *cb, af *t)
 {
     memset(t, 0, sizeof *t);
     t->n = m;
@@ -2689,6 +2693,8 @@ static tessel_status tile_front(const af *g, const tessel_front_params *p, const
     t->pnormals = nrm;
     t->lines = lines;
     tessel_status st = af_alloc_mesh(t, g->cell);
+    if (!st && nstart)
+        st = place_start(t, start, nstart);
     return st ? st : run_fronts(t, cb);
 }
 
@@ -3109,10 +3115,11 @@ done:
     return st;
 }
 
-/* Fronts in tiles of at most p->tile_points points, in parallel; their
+/* Fronts in tiles of at most p->tile_points points, in parallel, each from
+ * the triangles of start[0 .. nstart) with all three corners in it; their
  * triangles, less the seams, become s's starting mesh. */
 static tessel_status run_tiles(af *s, const tessel_front_params *p, double mean_nn,
-                               const tessel_callbacks *cb)
+                               const uint32_t *start, size_t nstart, const tessel_callbacks *cb)
 {
     size_t cap = 2 * (s->n / p->tile_points) + 2, nt = 0;
     uint32_t *ids = tsl_alloc_array(s->n, sizeof *ids);
@@ -3125,9 +3132,11 @@ static tessel_status run_tiles(af *s, const tessel_front_params *p, double mean_
     tessel_status *status = tsl_alloc_array(cap, sizeof *status);
     tile_ctx *ctx = tsl_alloc_array(cap, sizeof *ctx);
     tessel_callbacks *tcb = tsl_alloc_array(cap, sizeof *tcb);
+    uint32_t *tstart = tsl_alloc_array(3 * nstart + 1, sizeof *tstart);
+    size_t *sfrom = tsl_calloc_array(cap + 1, sizeof *sfrom);
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!ids || !tile_of || !local || !dcut || !keys || !range || !tiles || !status || !ctx ||
-        !tcb)
+        !tcb || !tstart || !sfrom)
         goto done;
     for (size_t i = 0; i < s->n; i++) {
         ids[i] = (uint32_t)i;
@@ -3147,6 +3156,28 @@ static tessel_status run_tiles(af *s, const tessel_front_params *p, double mean_
         ids[local[tile_of[i]]++] = (uint32_t)i;
     for (size_t i = 0; i < s->n; i++)
         local[ids[i]] = (uint32_t)(i - range[tile_of[ids[i]]].lo);
+    /* The starting triangles by tile, in their order, in local ids (those
+     * across a cut are left to the front that joins the tiles). */
+    for (size_t t = 0; t < nstart; t++) {
+        const uint32_t *v = start + 3 * t;
+        uint32_t k = tile_of[v[0]];
+        if (tile_of[v[1]] == k && tile_of[v[2]] == k)
+            sfrom[k + 1]++;
+    }
+    for (size_t k = 0; k < nt; k++)
+        sfrom[k + 1] += sfrom[k];
+    for (size_t t = 0; t < nstart; t++) {
+        const uint32_t *v = start + 3 * t;
+        uint32_t k = tile_of[v[0]];
+        if (tile_of[v[1]] != k || tile_of[v[2]] != k)
+            continue;
+        size_t at = 3 * sfrom[k]++;
+        for (int i = 0; i < 3; i++)
+            tstart[at + (size_t)i] = local[v[i]];
+    }
+    for (size_t k = nt; k-- > 0;) /* sfrom[k] was advanced to tile k's end */
+        sfrom[k + 1] = sfrom[k];
+    sfrom[0] = 0;
     atomic_int cancel, finished;
     atomic_init(&cancel, 0);
     atomic_init(&finished, 0);
@@ -3164,7 +3195,8 @@ static tessel_status run_tiles(af *s, const tessel_front_params *p, double mean_
     for (long long kk = 0; kk < count; kk++) {
         size_t k = (size_t)kk;
         status[k] = tile_front(s, p, ids + range[k].lo, range[k].hi - range[k].lo,
-                               (uint32_t)k, tile_of, local, &tcb[k], &tiles[k]);
+                               (uint32_t)k, tile_of, local, tstart + 3 * sfrom[k],
+                               sfrom[k + 1] - sfrom[k], &tcb[k], &tiles[k]);
         atomic_fetch_add(&finished, 1);
     }
     st = TESSEL_OK;
@@ -3193,6 +3225,8 @@ done:
     free(status);
     free(ctx);
     free(tcb);
+    free(tstart);
+    free(sfrom);
     return st;
 }
 
@@ -3300,11 +3334,12 @@ tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *
     mean_nn = counted ? mean_nn / (double)counted : 1.0;
     if ((st = af_alloc_mesh(&s, 3.0 * mean_nn)))
         goto fail;
-    if (start_count && (st = place_start(&s, start, start_count)))
+    if (p.tile_points > 0 && s.n > p.tile_points) {
+        if ((st = run_tiles(&s, &p, mean_nn, start, start_count, callbacks)))
+            goto fail;
+    } else if (start_count && (st = place_start(&s, start, start_count))) {
         goto fail;
-    if (!start_count && p.tile_points > 0 && s.n > p.tile_points &&
-        (st = run_tiles(&s, &p, mean_nn, callbacks)))
-        goto fail;
+    }
     if ((st = run_fronts(&s, callbacks)))
         goto fail;
     if (p.orient && (st = orient_components(&s)))

@@ -254,7 +254,10 @@ tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *t
  * (3 ids into points each, consistently oriented, no two crossing, as a
  * front's output less some triangles). Triangles at vertices the removal
  * left with two fans are dropped; the fronts start from the borders of the
- * rest and cover the points they do not use. */
+ * rest and cover the points they do not use. With more points than
+ * params->tile_points, each tile starts from the triangles inside it, and
+ * those across or along a cut are made again by the front that joins the
+ * tiles. */
 tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *lines,
                                        const tessel_front_params *params,
                                        const uint32_t *start, size_t start_count,

@@ -762,12 +762,12 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     t = tsl_seconds();
     st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, mesh, &s.front);
     /* Holes left: the front again around them with extra representatives,
-     * the rest of the mesh kept as it is (every result is valid). In a
-     * scene of many pieces (a room scan) most borders are the scan's own,
-     * and every attempt costs a front over the whole cloud: there the
-     * whole front does not run again, the local attempts stop at the first
-     * that fails, and they run only when the normals are oriented (the
-     * input had normals or a viewpoint). room_small.grid with its
+     * the rest of the mesh kept (but near tile cuts; every result is
+     * valid). In a scene of many pieces (a room scan) most borders are the
+     * scan's own, and every attempt costs a front over the whole cloud:
+     * there the whole front does not run again, the local attempts stop at
+     * the first that fails, and they run only when the normals are oriented
+     * (the input had normals or a viewpoint). room_small.grid with its
      * viewpoint, at four positions, kept the first attempt every time (F
      * 93.64 instead of 93.31); without it, at four positions and as 2 x 2
      * and 3 x 3 copies side by side, no attempt was ever kept (the first

@@ -671,6 +671,43 @@ static void test_front_from_start(void)
     CHECK_MSG(missing == 0, "%zu of %zu starting triangles lost", missing, kept);
     printf("front from %zu of %zu triangles: %zu triangles, %zu seeds\n", kept,
            whole.triangle_count, again.triangle_count, st.seeds);
+    /* In tiles (each from the starting triangles inside it, the ones in
+     * the band along a cut made again by the front that joins them): the
+     * same closed surface, the same for one and two threads, and all but
+     * the starting triangles near the cuts kept. */
+    tessel_front_params tp = tessel_front_params_default();
+    tp.tile_points = 1000;
+    tessel_mesh tiled[2];
+    for (int t = 0; t < 2; t++) {
+        tp.threads = t + 1;
+        CHECK(tsl_advancing_front_from(&c, NULL, &tp, start, kept, NULL, &tiled[t], NULL) ==
+              TESSEL_OK);
+    }
+    CHECK(tiled[0].triangle_count == tiled[1].triangle_count &&
+          memcmp(tiled[0].triangles, tiled[1].triangles,
+                 3 * tiled[0].triangle_count * sizeof *tiled[0].triangles) == 0);
+    rep = check_mesh(&tiled[0], &c);
+    CHECK(tessel_mesh_report_valid(&rep) && rep.self_intersections == 0);
+    CHECK_MSG(rep.boundary_edges == 0 && rep.components == 1 && rep.genus == 0,
+              "tiled front from a start: %zu boundary edges, %zu components", rep.boundary_edges,
+              rep.components);
+    CHECK(signed_volume(&tiled[0]) > 0.0);
+    tri_key *tiled_have = malloc(tiled[0].triangle_count * sizeof *tiled_have);
+    for (size_t t = 0; t < tiled[0].triangle_count; t++)
+        tiled_have[t] = rotated(tiled[0].triangles + 3 * t);
+    qsort(tiled_have, tiled[0].triangle_count, sizeof *tiled_have, cmp_tri_key);
+    size_t remade = 0;
+    for (size_t t = 0; t < kept; t++) {
+        tri_key k = rotated(start + 3 * t);
+        remade += !bsearch(&k, tiled_have, tiled[0].triangle_count, sizeof *tiled_have,
+                           cmp_tri_key);
+    }
+    CHECK_MSG(remade > 0 && remade < kept / 4, "tiled: %zu of %zu starting triangles made again",
+              remade, kept);
+    printf("tiled front from a start: %zu of %zu starting triangles made again\n", remade, kept);
+    free(tiled_have);
+    tessel_mesh_free(&tiled[0]);
+    tessel_mesh_free(&tiled[1]);
     /* A starting triangle with an id beyond the points is refused. */
     start[1] = (uint32_t)c.count;
     tessel_mesh bad;
