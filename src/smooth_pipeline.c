@@ -547,7 +547,7 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
             continue; /* its arrays are NULL, which memcpy may not take */
         memcpy(reps->xyz + 3 * at, ex[x].xyz, 3 * ex[x].n * sizeof *xyz);
         if (nn)
-            memcpy(*nn + 3 * at, ex[x].nrm, 3 * ex[x].n * sizeof *xyz);
+            memcpy(*nn + 3 * at, ex[x].nrm, 3 * ex[x].n * sizeof **nn);
     }
     reps->count = n;
     *added = n_extra;
