@@ -24,11 +24,12 @@
  *      non-manifold element or self-intersection, and as many components
  *      as the reference. The pipeline is deterministic, so this is how
  *      much its result depends on the last bits of the input (--out DIR
- *      writes these meshes too);
+ *      writes these meshes too, and each copy's cloud beside its mesh);
  *   4. with --data DIR --renoise K: each NAME.pd.ply (the clean sample)
  *      with K new draws of the noise of the .pd.n05 files (Gaussian, sigma
  *      0.5% of the diagonal per axis; draw k uses seed k), against the same
- *      targets: how the pipeline does on scans it was not tuned on.
+ *      targets: how the pipeline does on scans it was not tuned on
+ *      (--out DIR as with --jitter).
  *
  * usage: bench_pipeline [--max N] [--runs R] [--threads T] [--refine R] [--refine-k K]
  *                       [--tile N] [--noise X] [--data DIR] [--out DIR] [--jitter K]
@@ -290,6 +291,8 @@ static void run_copies(const char *dir, const char *name, const char *suffix, do
                 char op[1024];
                 snprintf(op, sizeof op, "%s/%s.%s.%s%d.smooth.ply", out, name, suffix, what, k);
                 tessel_mesh_write(&m, op, NULL, NULL);
+                snprintf(op, sizeof op, "%s/%s.%s.%s%d.ply", out, name, suffix, what, k);
+                tessel_cloud_write(&c, op, NULL, NULL);
             }
         }
         tessel_mesh_free(&m);
