@@ -181,7 +181,7 @@ tessel_status tsl_read_file(const char *path, uint8_t **data, size_t *size,
         tsl_diag_set(diag, path, 0, 0, 0, "file too large for this machine");
         return TESSEL_ERR_LIMIT;
     }
-    uint8_t *buf = malloc(cap);
+    uint8_t *buf = tsl_alloc_array(cap, 1); /* huge pages for a large file */
     if (!buf) {
         fclose(f);
         tsl_diag_set(diag, path, 0, 0, 0, "out of memory reading %llu bytes",
@@ -211,14 +211,12 @@ tessel_status tsl_read_file(const char *path, uint8_t **data, size_t *size,
                 tsl_diag_set(diag, path, 0, 0, 0, "file too large for this machine");
                 return TESSEL_ERR_LIMIT;
             }
-            uint8_t *nb = realloc(buf, cap * 2);
-            if (!nb) {
+            if (tsl_resize((void **)&buf, n, cap * 2)) {
                 free(buf);
                 fclose(f);
                 tsl_diag_set(diag, path, 0, 0, 0, "out of memory reading the file");
                 return TESSEL_ERR_NOMEM;
             }
-            buf = nb;
             cap *= 2;
             buf[n++] = (uint8_t)c;
         }
