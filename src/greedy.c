@@ -1253,16 +1253,8 @@ tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count
     size_t need;
     if (!tsl_add_size(c->count, count, &need))
         return TESSEL_ERR_LIMIT;
-    if (need > c->cap) {
-        size_t cap = c->cap ? c->cap : 4096;
-        while (cap < need)
-            cap *= 2;
-        uint32_t *t = realloc(c->tris, cap * 3 * sizeof *t);
-        if (!t)
-            return TESSEL_ERR_NOMEM;
-        c->tris = t;
-        c->cap = cap;
-    }
+    if (tsl_grow((void **)&c->tris, &c->cap, need, 3 * sizeof *c->tris))
+        return TESSEL_ERR_NOMEM;
     memcpy(c->tris + 3 * c->count, tris, count * 3 * sizeof *tris);
     c->count = need;
     return TESSEL_OK;

@@ -535,30 +535,19 @@ static tessel_status tri_alloc(gp *g, uint32_t *out)
             size_t cap = g->tcap ? 2 * g->tcap : 1024;
             if (cap >= NONE)
                 return TESSEL_ERR_LIMIT;
-            gp_tri *nt = realloc(g->tri, cap * sizeof *nt);
-            if (!nt)
+            /* tsl_resize: huge pages once an array reaches 4 MB. */
+            size_t old = g->tcap;
+            if (tsl_resize((void **)&g->tri, old * sizeof *g->tri, cap * sizeof *g->tri) ||
+                tsl_resize((void **)&g->tflag, old * sizeof *g->tflag, cap * sizeof *g->tflag) ||
+                tsl_resize((void **)&g->tblock, old * sizeof *g->tblock,
+                           cap * sizeof *g->tblock) ||
+                tsl_resize((void **)&g->tstamp, old * sizeof *g->tstamp,
+                           cap * sizeof *g->tstamp) ||
+                tsl_resize((void **)&g->tsg_next, old * sizeof *g->tsg_next,
+                           cap * sizeof *g->tsg_next) ||
+                tsl_resize((void **)&g->tbox, old * 6 * sizeof *g->tbox,
+                           cap * 6 * sizeof *g->tbox))
                 return TESSEL_ERR_NOMEM;
-            g->tri = nt;
-            uint8_t *nf = realloc(g->tflag, cap * sizeof *nf);
-            if (!nf)
-                return TESSEL_ERR_NOMEM;
-            g->tflag = nf;
-            uint32_t *nb = realloc(g->tblock, cap * sizeof *nb);
-            if (!nb)
-                return TESSEL_ERR_NOMEM;
-            g->tblock = nb;
-            uint32_t *ns = realloc(g->tstamp, cap * sizeof *ns);
-            if (!ns)
-                return TESSEL_ERR_NOMEM;
-            g->tstamp = ns;
-            uint32_t *nn = realloc(g->tsg_next, cap * sizeof *nn);
-            if (!nn)
-                return TESSEL_ERR_NOMEM;
-            g->tsg_next = nn;
-            float *nbx = realloc(g->tbox, cap * 6 * sizeof *nbx);
-            if (!nbx)
-                return TESSEL_ERR_NOMEM;
-            g->tbox = nbx;
             g->tcap = cap;
         }
         t = (uint32_t)g->tused++;
