@@ -60,13 +60,13 @@ static tessel_status resize_points(tsl_builder *b, size_t new_cap)
     /* tsl_resize: a 10^6-point cloud's arrays get huge pages, which saves
      * a quarter of a whole run's page faults. */
     size_t bytes, old = b->cap;
-    tessel_status st = TESSEL_OK;
+    tessel_status st;
     if (!tsl_mul_size(new_cap, 3 * sizeof(double), &bytes))
         return TESSEL_ERR_NOMEM;
     if ((st = tsl_resize((void **)&b->xyz, old * 3 * sizeof(double), bytes)))
         return st;
-    if (b->has_normals &&
-        (st = tsl_resize((void **)&b->normals, old * 3 * sizeof(float), new_cap * 3 * sizeof(float) + 1)))
+    if (b->has_normals && (st = tsl_resize((void **)&b->normals, old * 3 * sizeof(float),
+                                           new_cap * 3 * sizeof(float) + 1)))
         return st;
     if (b->has_rgb && (st = tsl_resize((void **)&b->rgb, old * 3, new_cap * 3 + 1)))
         return st;
