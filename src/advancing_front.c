@@ -3115,6 +3115,13 @@ done:
     return st;
 }
 
+/* The tile holding all three corners of triangle v, or NONE. */
+static inline uint32_t tile_holding(const uint32_t *tile_of, const uint32_t v[3])
+{
+    uint32_t k = tile_of[v[0]];
+    return tile_of[v[1]] == k && tile_of[v[2]] == k ? k : NONE;
+}
+
 /* Fronts in tiles of at most p->tile_points points, in parallel, each from
  * the triangles of start[0 .. nstart) with all three corners in it; their
  * triangles, less the seams, become s's starting mesh. */
@@ -3159,17 +3166,16 @@ static tessel_status run_tiles(af *s, const tessel_front_params *p, double mean_
     /* The starting triangles by tile, in their order, in local ids (those
      * across a cut are left to the front that joins the tiles). */
     for (size_t t = 0; t < nstart; t++) {
-        const uint32_t *v = start + 3 * t;
-        uint32_t k = tile_of[v[0]];
-        if (tile_of[v[1]] == k && tile_of[v[2]] == k)
+        uint32_t k = tile_holding(tile_of, start + 3 * t);
+        if (k != NONE)
             sfrom[k + 1]++;
     }
     for (size_t k = 0; k < nt; k++)
         sfrom[k + 1] += sfrom[k];
     for (size_t t = 0; t < nstart; t++) {
         const uint32_t *v = start + 3 * t;
-        uint32_t k = tile_of[v[0]];
-        if (tile_of[v[1]] != k || tile_of[v[2]] != k)
+        uint32_t k = tile_holding(tile_of, v);
+        if (k == NONE)
             continue;
         size_t at = 3 * sfrom[k]++;
         for (int i = 0; i < 3; i++)

@@ -446,16 +446,11 @@ static tessel_status long_register(gp *g, uint32_t t)
                     g->lt_free = g->lt_next[e];
                 } else {
                     if (g->lt_used == g->lt_cap) {
-                        size_t cap = g->lt_cap ? 2 * g->lt_cap : 1024;
-                        uint32_t *a = realloc(g->lt_tri, cap * sizeof *a);
-                        if (!a)
+                        size_t ct = g->lt_cap, cn = g->lt_cap;
+                        if (grow((void **)&g->lt_tri, &ct, g->lt_used + 1, sizeof *g->lt_tri) ||
+                            grow((void **)&g->lt_next, &cn, g->lt_used + 1, sizeof *g->lt_next))
                             return TESSEL_ERR_NOMEM;
-                        g->lt_tri = a;
-                        uint32_t *b = realloc(g->lt_next, cap * sizeof *b);
-                        if (!b)
-                            return TESSEL_ERR_NOMEM;
-                        g->lt_next = b;
-                        g->lt_cap = cap;
+                        g->lt_cap = ct < cn ? ct : cn;
                     }
                     e = (uint32_t)g->lt_used++;
                 }

@@ -1654,24 +1654,36 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
         goto done;
 
     /* Back to the input's order, or the colours and the organized grid to
-     * the grid's. */
-    st = tessel_cloud_copy(&res, cloud);
+     * the grid's. The input's positions and normals are not copied: every
+     * slot is written below. */
+    {
+        tessel_cloud rest = *cloud;
+        rest.xyz = rest.normals = NULL;
+        st = tessel_cloud_copy(&res, &rest);
+    }
     if (st != TESSEL_OK)
         goto done;
-    if (!res.normals && !(res.normals = tsl_alloc_array(n, 3 * sizeof(float)))) {
-        st = TESSEL_ERR_NOMEM;
-        goto done;
-    }
-    {
-        int a = (int)((p.passes - 1) & 1);
+    int last = (int)((p.passes - 1) & 1);
+    if (grid_order) {
+        /* The last pass's buffers are the result as they are. */
+        res.xyz = buf[last];
+        res.normals = buf[2 + last];
+        buf[last] = buf[2 + last] = NULL;
+    } else {
+        res.xyz = tsl_alloc_array(n, 3 * sizeof(float));
+        res.normals = tsl_alloc_array(n, 3 * sizeof(float));
+        if (!res.xyz || !res.normals) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
         /* perm is a permutation: every thread writes its own slots. */
 #ifdef _OPENMP
 #pragma omp parallel for num_threads(threads) schedule(static)
 #endif
         for (size_t s = 0; s < n; s++) {
-            size_t i = grid_order ? s : g.perm[s];
-            memcpy(res.xyz + 3 * i, buf[a] + 3 * s, 3 * sizeof(float));
-            memcpy(res.normals + 3 * i, buf[2 + a] + 3 * s, 3 * sizeof(float));
+            size_t i = g.perm[s];
+            memcpy(res.xyz + 3 * i, buf[last] + 3 * s, 3 * sizeof(float));
+            memcpy(res.normals + 3 * i, buf[2 + last] + 3 * s, 3 * sizeof(float));
         }
     }
     if (grid_order) {

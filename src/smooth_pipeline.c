@@ -526,30 +526,19 @@ static tessel_status densify_holes(const tessel_mesh *m, const tessel_cloud *smo
     }
     if (st || !n_extra)
         goto done;
-    size_t n = reps->count + n_extra;
-    float *xyz = realloc(reps->xyz, 3 * n * sizeof *xyz);
-    if (!xyz) {
-        st = TESSEL_ERR_NOMEM;
-        goto done;
-    }
-    reps->xyz = xyz;
+    size_t was = 3 * reps->count * sizeof(float), now = was + 3 * n_extra * sizeof(float);
     float **nn = reps->normals ? &reps->normals : *lines ? lines : NULL;
-    if (nn) {
-        float *grown = realloc(*nn, 3 * n * sizeof **nn);
-        if (!grown) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        *nn = grown;
-    }
+    if ((st = tsl_resize((void **)&reps->xyz, was, now)) ||
+        (nn && (st = tsl_resize((void **)nn, was, now))))
+        goto done;
     for (size_t x = 0, at = reps->count; x < sites.n; at += ex[x].n, x++) {
         if (!ex[x].n)
             continue; /* its arrays are NULL, which memcpy may not take */
-        memcpy(reps->xyz + 3 * at, ex[x].xyz, 3 * ex[x].n * sizeof *xyz);
+        memcpy(reps->xyz + 3 * at, ex[x].xyz, 3 * ex[x].n * sizeof *reps->xyz);
         if (nn)
             memcpy(*nn + 3 * at, ex[x].nrm, 3 * ex[x].n * sizeof **nn);
     }
-    reps->count = n;
+    reps->count += n_extra;
     *added = n_extra;
 done:
     for (size_t x = 0; ex && x < sites.n; x++) {
