@@ -1654,8 +1654,8 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
         goto done;
 
     /* Back to the input's order, or the colours and the organized grid to
-     * the grid's. The input's positions and normals are not copied: every
-     * slot is written below. */
+     * the grid's. The input's positions and normals are not copied: the
+     * result's are the last pass's, taken as they are or permuted. */
     {
         tessel_cloud rest = *cloud;
         rest.xyz = rest.normals = NULL;
