@@ -6,7 +6,7 @@
 #ifndef TESSEL_FORMAT_HELPERS_H
 #define TESSEL_FORMAT_HELPERS_H
 
-#include "io/io_internal.h"
+#include "io/io.h"
 #include "test.h"
 
 #include <stdio.h>

@@ -9,7 +9,7 @@
  * on hand-made cases. */
 #include "test.h"
 
-#include "internal.h"
+#include "front/front.h"
 
 #include <math.h>
 #include <stdbool.h>

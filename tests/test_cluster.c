@@ -2,7 +2,7 @@
  * clusters partition the cloud, obey the flatness and diameter rules, nest
  * when the rules get stricter, do not depend on the thread count;
  * representatives lie on the surface; isolated outliers get none. */
-#include "internal.h"
+#include "smooth/smooth.h"
 #include "tessel.h"
 #include "test.h"
 

@@ -1,5 +1,5 @@
 /* Status strings, ownership helpers and the 3x3 eigen-solver. */
-#include "internal.h"
+#include "core/core.h"
 #include "test.h"
 
 #include <string.h>

@@ -4,7 +4,7 @@
  * a write that fails halfway, refused formats: the destination is untouched
  * and no temporary is left), read errors, format detection, reading from
  * a pipe, and the streaming mesh writer against tessel_mesh_write. */
-#include "io/io_internal.h"
+#include "io/io.h"
 #include "test.h"
 
 #include <dirent.h>

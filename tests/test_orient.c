@@ -2,7 +2,7 @@
  * sphere whose triangles' windings the test sets: it must find a region
  * turned inward, mark its rim, and leave alone what parity cannot judge
  * (a whole component, an open surface). */
-#include "internal.h"
+#include "mesh/mesh.h"
 #include "test.h"
 
 #include <math.h>

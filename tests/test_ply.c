@@ -3,7 +3,7 @@
  * and viewpoints, exact round trips, every prefix of valid files (no crash,
  * OK or an error), and the bad files of tests/data/bad with their expected
  * messages and positions. */
-#include "io/io_internal.h"
+#include "io/io.h"
 #include "test.h"
 
 #include <math.h>

@@ -7,7 +7,8 @@
  * torus come out closed with the right genus and outward; a plane with a
  * hole keeps its two borders; two close parallel sheets stay two
  * components. */
-#include "internal.h"
+#include "pipeline/pipeline.h"
+#include "smooth/smooth.h"
 #include "test.h"
 
 #include "surfaces.h"

@@ -2,7 +2,7 @@
  * back-face colour for flipped triangles, red boundary for holes, empty
  * meshes, determinism across thread counts, the contact sheet, and the CLI's
  * PNG output. */
-#include "internal.h"
+#include "core/core.h"
 #include "test.h"
 
 #include <stdlib.h>

@@ -1,7 +1,8 @@
 /* Robust smoothing (src/smooth.c): noisy plane and sphere with known
  * surfaces, robustness to outliers, sharp edges of a cube, the projector,
  * independence from thread count and input order, argument checks. */
-#include "internal.h"
+#include "pipeline/pipeline.h"
+#include "smooth/smooth.h"
 #include "tessel.h"
 #include "test.h"
 

@@ -5,7 +5,7 @@
  * anything; the smoothing's grid measures the same spacing as the
  * kd-tree, bit for bit. */
 #include "tessel.h"
-#include "grid.h"
+#include "core/grid.h"
 #include "test.h"
 
 #include <math.h>

@@ -13,7 +13,7 @@
  *    very same floats and offset.
  * Storage grows geometrically; the double array is converted to floats in
  * place, so finishing needs no second copy of the points. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <float.h>
 #include <math.h>

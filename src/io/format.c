@@ -2,7 +2,7 @@
  * parameters, reading from memory or files through the per-format parsers
  * and the shared builder, writing through the per-format writers and an
  * atomic output file, and the streaming mesh writer. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <errno.h>
 #include <stdlib.h>

@@ -11,7 +11,7 @@
  * size: the header, every VLR and EVLR, and the point count (legacy 32-bit or
  * the 1.4 64-bit one) times the record length. LAZ (compressed) files are
  * recognised and refused. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <string.h>
 

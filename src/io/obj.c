@@ -13,7 +13,7 @@
  * Texture coordinates, groups, materials, smoothing and curves are ignored.
  * Colours are fractions in [0, 1] unless a vertex has a component above 1,
  * which then reads as 0-255. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -8,7 +8,7 @@
  * against the lines actually present; memory is reserved for at most what
  * the remaining bytes can hold, so a lying count cannot make the reader
  * allocate. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <stdlib.h>
 #include <string.h>

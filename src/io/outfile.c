@@ -7,7 +7,7 @@
  * over the destination. On failure or abort the temporary is removed and the
  * destination is left as it was. The new file gets the usual permissions
  * (0666 minus the umask), not mkstemp's 0600. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <errno.h>
 #include <stdio.h>

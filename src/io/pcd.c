@@ -12,7 +12,7 @@
  * fields stored column by column) is refused with a clear message. Every
  * announced count is checked against the bytes or lines actually there
  * before anything is allocated. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -19,7 +19,7 @@
  * float when the offset is 0 and as double (offset + xyz) otherwise, so a
  * file reads back to the same floats and offset; faces as a uchar count and
  * int indices. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <math.h>
 #include <stdlib.h>

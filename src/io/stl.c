@@ -9,7 +9,7 @@
  * unit right-hand normal of the facet, computed in double in the local frame;
  * degenerate facets get a zero normal, as readers expect. There is no STL
  * reader: STL is a triangle soup, so meshes should come in as PLY/OBJ/OFF. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <string.h>
 

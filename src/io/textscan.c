@@ -11,7 +11,7 @@
  *
  * Formatting writes the shortest text that reads back, through the same
  * scanner and the builder's rounding, to the same float and offset. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <float.h>
 #include <math.h>

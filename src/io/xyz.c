@@ -21,7 +21,7 @@
  * The writer prints coordinates with tsl_format_coord (exact round trip),
  * comma separated with a header line for CSV; colour columns are announced
  * by a header ("# x y z r g b" in XYZ) so the file reads back as written. */
-#include "io_internal.h"
+#include "io/io.h"
 
 #include <stdlib.h>
 #include <string.h>

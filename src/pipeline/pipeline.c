@@ -22,7 +22,9 @@
  * pieces (see `defects`). Points no triangle uses are
  * dropped before refinement, and the result's normals are those of the
  * vertices' stars. Each stage is timed, as in the paper's Table 1. */
-#include "internal.h"
+#include "front/front.h"
+#include "pipeline/pipeline.h"
+#include "smooth/smooth.h"
 
 #include <stdlib.h>
 #include <string.h>

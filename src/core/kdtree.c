@@ -29,7 +29,7 @@
  * does not contract; clang is told below).
  *
  * Measured against a uniform grid and nanoflann: docs/neighbours.md. */
-#include "internal.h"
+#include "core/core.h"
 
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF

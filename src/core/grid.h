@@ -6,7 +6,7 @@
 #ifndef TESSEL_GRID_H
 #define TESSEL_GRID_H
 
-#include "internal.h"
+#include "core/core.h"
 
 typedef struct tsl_grid {
     double origin[3];

@@ -6,7 +6,7 @@
  * representative. Clusters are independent: an OpenMP loop writes one slot
  * per cluster, and the kept slots are compacted in cluster order, so the
  * output does not depend on the thread count. */
-#include "internal.h"
+#include "smooth/smooth.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -6,7 +6,7 @@
  * front are kept), the guard's grids of held triangles (short ones by
  * centroid cell, long ones by every cell their box overlaps), and the
  * set-up. */
-#include "greedy_internal.h"
+#include "greedy/greedy.h"
 
 /* ---- bucketing: the dexel array (section 3) ---- */
 

@@ -15,7 +15,7 @@
  * absorbs every later point closer than the tolerance, so the kept points
  * are at least the tolerance apart and the result does not depend on the
  * thread count. */
-#include "grid.h"
+#include "core/grid.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -24,7 +24,7 @@
  * as a second layer. Triangles are held while a live point is near enough
  * for a later triangle to reach them and streamed out after. See
  * docs/greedy.md. */
-#include "greedy_internal.h"
+#include "greedy/greedy.h"
 
 #include <float.h>
 #include <math.h>

@@ -41,7 +41,7 @@
  * order, where neighbours are near in memory. The traversal is sequential
  * and fully determined by the data (ties broken by position), so the result
  * does not depend on the thread count either. */
-#include "internal.h"
+#include "core/core.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -8,7 +8,7 @@
  * Theorem 4.1) relies on its sampling assumptions here instead. The
  * front's triangles must also not lie on a held triangle as a second layer
  * (second_layer), which uniformly random samples otherwise make. */
-#include "greedy_internal.h"
+#include "greedy/greedy.h"
 
 /* Exact: a, b, c collinear (a zero-area triangle). */
 int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3])

@@ -20,7 +20,7 @@
  * into fused multiply-adds behind our back: ISO C mode (which our CMake uses)
  * makes gcc keep them apart, the pragma below does it for clang, and where a
  * fast hardware fma exists Two-Product uses it explicitly. */
-#include "internal.h"
+#include "core/core.h"
 
 #include <math.h>
 

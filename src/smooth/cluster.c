@@ -17,7 +17,7 @@
  * by position are the tree's depth-first order. Subtrees run as OpenMP
  * tasks on disjoint ranges; the arithmetic of a node does not depend on
  * which thread runs it, so the result is the same for any thread count. */
-#include "internal.h"
+#include "smooth/smooth.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -21,7 +21,7 @@
  *    without moving or adding a vertex.
  *
  * Then everything goes to the sink. */
-#include "greedy_internal.h"
+#include "greedy/greedy.h"
 
 /* Flags the vertices of the triangles marked 2 (the rims to drop): only
  * they can be left with more than one fan. */

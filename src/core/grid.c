@@ -3,7 +3,7 @@
  * from the runs of the cells around it. Building it is a radix sort,
  * linear in the number of points. Declarations and the small inline
  * helpers are in src/grid.h. */
-#include "grid.h"
+#include "core/grid.h"
 
 #include <stdlib.h>
 #include <string.h>

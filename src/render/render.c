@@ -15,7 +15,7 @@
  * whatever the thread count and the image is deterministic. A per-triangle
  * row range computed once lets each band skip the others' triangles with a
  * sequential scan. Lines and splats are drawn serially after the fill. */
-#include "internal.h"
+#include "core/core.h"
 
 #include <stdlib.h>
 #include <string.h>

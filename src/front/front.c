@@ -36,7 +36,7 @@
  * every connected component gets its own surface. At the end, every closed
  * component is turned outward (positive signed volume), and open ones agree
  * with the points' normals when there are any. */
-#include "internal.h"
+#include "front/front.h"
 
 #include <float.h>
 #include <omp.h>

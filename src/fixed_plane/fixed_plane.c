@@ -29,7 +29,7 @@
  * Orientation comes from the array's parametrization, so it is consistent
  * by construction. docs/fixed_plane.md has the details and measurements.
  */
-#include "internal.h"
+#include "core/core.h"
 
 #include <float.h>
 #include <math.h>

@@ -9,7 +9,7 @@
 #ifndef TESSEL_GREEDY_INTERNAL_H
 #define TESSEL_GREEDY_INTERNAL_H
 
-#include "internal.h"
+#include "mesh/mesh.h"
 
 #include <math.h>
 #include <stdlib.h>

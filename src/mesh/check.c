@@ -32,7 +32,7 @@
  * Work is threaded with OpenMP over triangles and samples; every sum is
  * taken in index order afterwards, so results do not depend on the thread
  * count. */
-#include "internal.h"
+#include "mesh/mesh.h"
 
 #include <stdlib.h>
 #include <string.h>

@@ -3,7 +3,7 @@
  * PCA-based stage uses. */
 /* madvise and MADV_HUGEPAGE are not POSIX. */
 #define _DEFAULT_SOURCE
-#include "internal.h"
+#include "core/core.h"
 
 #include <stdio.h>
 #include <stdlib.h>

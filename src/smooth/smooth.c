@@ -35,7 +35,8 @@
  * output position depends only on the previous pass's positions, so points
  * are independent: OpenMP loops with per-point output slots give the same
  * bits for any thread count. */
-#include "grid.h"
+#include "core/grid.h"
+#include "smooth/smooth.h"
 
 #include <stdlib.h>
 #include <string.h>

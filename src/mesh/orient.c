@@ -25,7 +25,7 @@
  * (tsl_orient_check_toward). The greedy front on a noisy range scan folds
  * over itself and carries the wrong side across the folds: on
  * room_small.grid.ply half the area faced away from the scanner. */
-#include "internal.h"
+#include "mesh/mesh.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -20,7 +20,8 @@
  * (exact predicates, the advancing front's triangle hash grid). A split or
  * flip that fails is undone, so the mesh stays manifold, oriented and free
  * of self-intersections. */
-#include "internal.h"
+#include "mesh/mesh.h"
+#include "smooth/smooth.h"
 
 #include <omp.h>
 #include <stdlib.h>

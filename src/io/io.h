@@ -12,7 +12,7 @@
 #ifndef TESSEL_IO_INTERNAL_H
 #define TESSEL_IO_INTERNAL_H
 
-#include "../internal.h"
+#include "core/core.h"
 
 #include <stdio.h>
 

@@ -1,0 +1,168 @@
+/* The core layer, private to the library: diagnostics, checked size
+ * arithmetic, memory, progress, threads, small vector helpers, union-find,
+ * eigen-solvers, exact predicates and the kd-tree's storage order. Every
+ * other folder of src/ builds on it. Not installed. */
+#ifndef TESSEL_CORE_H
+#define TESSEL_CORE_H
+
+#include "tessel.h"
+
+#include <math.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#if defined(__GNUC__)
+#define TSL_PRINTF(a, b) __attribute__((format(printf, a, b)))
+#else
+#define TSL_PRINTF(a, b)
+#endif
+
+/* Fills diag (if not NULL): file name, line (0 = none), byte offset
+ * (has_offset = 0: none) and a printf-style message. */
+void tsl_diag_set(tessel_diag *diag, const char *file, uint64_t line, int has_offset,
+                  uint64_t offset, const char *fmt, ...) TSL_PRINTF(6, 7);
+
+/* a*b and a+b into *out; false on overflow. */
+static inline bool tsl_mul_size(size_t a, size_t b, size_t *out)
+{
+    if (a != 0 && b > SIZE_MAX / a)
+        return false;
+    *out = a * b;
+    return true;
+}
+static inline bool tsl_add_size(size_t a, size_t b, size_t *out)
+{
+    if (b > SIZE_MAX - a)
+        return false;
+    *out = a + b;
+    return true;
+}
+
+/* malloc(count*size) with overflow check; NULL on overflow or failure. */
+void *tsl_alloc_array(size_t count, size_t size);
+/* calloc-like, zeroed. */
+void *tsl_calloc_array(size_t count, size_t size);
+/* Grows *ptr (holding *cap elements of size bytes) to at least need
+ * elements, doubling. Returns TESSEL_ERR_NOMEM on failure (ptr unchanged). */
+tessel_status tsl_grow(void **ptr, size_t *cap, size_t need, size_t size);
+/* realloc of *ptr (old_bytes in use) to new_bytes, keeping the contents;
+ * large blocks get the huge-page advice of tsl_alloc_array. Returns
+ * TESSEL_ERR_NOMEM on failure (*ptr unchanged). */
+tessel_status tsl_resize(void **ptr, size_t old_bytes, size_t new_bytes);
+/* Monotonic wall-clock seconds, for the stage times of the stats. */
+double tsl_seconds(void);
+
+/* Progress helper: calls the callback if set; returns TESSEL_ERR_CANCELLED
+ * when it asks to stop. */
+tessel_status tsl_progress(const tessel_callbacks *cb, const char *stage, double fraction);
+void tsl_log(const tessel_callbacks *cb, tessel_log_level level, const char *fmt, ...)
+    TSL_PRINTF(3, 4);
+
+/* Sets the OpenMP thread count for the next parallel region from a params
+ * field (0 = leave the OpenMP default, which honours OMP_NUM_THREADS). */
+int tsl_threads(int requested);
+
+/* ---- small vector math on double[3] ---- */
+static inline double tsl_dot(const double a[3], const double b[3])
+{
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+static inline void tsl_sub(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[0] - b[0];
+    out[1] = a[1] - b[1];
+    out[2] = a[2] - b[2];
+}
+static inline void tsl_cross(const double a[3], const double b[3], double out[3])
+{
+    double x = a[1] * b[2] - a[2] * b[1];
+    double y = a[2] * b[0] - a[0] * b[2];
+    double z = a[0] * b[1] - a[1] * b[0];
+    out[0] = x;
+    out[1] = y;
+    out[2] = z;
+}
+static inline double tsl_norm(const double a[3]) { return sqrt(tsl_dot(a, a)); }
+static inline bool tsl_normalize(double a[3])
+{
+    double n = tsl_norm(a);
+    if (!(n > 0.0))
+        return false;
+    a[0] /= n;
+    a[1] /= n;
+    a[2] /= n;
+    return true;
+}
+static inline void tsl_load(const float *p, double out[3])
+{
+    out[0] = p[0];
+    out[1] = p[1];
+    out[2] = p[2];
+}
+
+/* Union-find: the root of x, halving the path to it. */
+static inline uint32_t tsl_uf_find(uint32_t *parent, uint32_t x)
+{
+    while (parent[x] != x) {
+        parent[x] = parent[parent[x]];
+        x = parent[x];
+    }
+    return x;
+}
+
+/* qsort comparison of uint32_t values, ascending. */
+int tsl_cmp_u32(const void *a, const void *b);
+
+/* Eigen-decomposition of a symmetric 3x3 matrix (row-major a[9]).
+ * Eigenvalues ascending in w[3]; column i of v (v[3*r+i]) is the unit
+ * eigenvector of w[i]. Jacobi rotations: accurate for near-degenerate
+ * covariances, which is where normals are decided. */
+void tsl_eigen_sym3(const double a[9], double w[3], double v[9]);
+
+/* The same for a covariance m = {a00, a01, a02, a11, a12, a22} (symmetric,
+ * positive semi-definite) without rotations, several times cheaper:
+ * tsl_sym3_values gives the eigenvalues ascending in l[3], the smallest as
+ * the smallest root of the characteristic cubic by Newton's method from 0
+ * (below every root, where Newton rises monotonically to it; cheaper than
+ * the trigonometric closed form, whose acos and cos cost more than the
+ * whole iteration), the other two from the deflated quadratic; false when
+ * the trace is not positive. tsl_sym3_vector gives a unit vector of the
+ * null space of m - l I, the longest cross product of two of its rows;
+ * false when all vanish. That vector is accurate only for an eigenvalue l
+ * well apart from the other two: callers take tsl_eigen_sym3 when the gap
+ * is under 1e-4 of the largest eigenvalue. */
+bool tsl_sym3_values(const double m[6], double l[3]);
+bool tsl_sym3_vector(const double m[6], double l, double v[3]);
+
+/* ---- robust orientation predicates (src/predicates.c, Shewchuk 1997) ----
+ * The SIGN of the result is exact (filtered double evaluation, exact
+ * expansion arithmetic when the filter cannot decide); the magnitude is an
+ * approximation. Exact for any inputs whose products neither overflow nor
+ * underflow, which covers every float coordinate.
+ * tsl_orient2d: > 0 when a, b, c turn counter-clockwise, < 0 clockwise, 0
+ *   when collinear (twice the signed area of abc).
+ * tsl_orient3d: > 0 when d lies below the plane through a, b, c, "below"
+ *   meaning a, b, c appear counter-clockwise seen from above; < 0 above; 0
+ *   when coplanar (det[a-d; b-d; c-d], six times the signed volume). */
+double tsl_orient2d(const double a[2], const double b[2], const double c[2]);
+double tsl_orient3d(const double a[3], const double b[3], const double c[3],
+                    const double d[3]);
+
+/* Exactly collinear vertices (zero area). */
+bool tsl_triangle_degenerate(const double *p[3]);
+/* Two non-degenerate triangles with vertex ids ia, ib and coordinates pa,
+ * pb intersect in more than their shared vertex or edge (exact, closed
+ * triangles). Triangles with three shared ids count as intersecting. */
+bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const uint32_t ib[3],
+                             const double *pb[3]);
+
+/* ---- neighbour search (src/kdtree.c) ---- */
+
+/* Writes the index's count point indices in its storage order (leaf by
+ * leaf). Self-queries issued in this order find the tree in cache: 1.7x
+ * the queries/s of random order on 10^6 points. */
+void tsl_index_order(const tessel_index *index, uint32_t *order);
+
+#endif /* TESSEL_CORE_H */
