@@ -112,6 +112,19 @@ static inline uint32_t tsl_uf_find(uint32_t *parent, uint32_t x)
     return x;
 }
 
+/* Union-find: joins the sets of a and b under the smaller of their roots,
+ * so that a set's root is its smallest member whatever the order of the
+ * unions (results that depend on the root do not depend on that order). */
+static inline void tsl_uf_unite(uint32_t *parent, uint32_t a, uint32_t b)
+{
+    a = tsl_uf_find(parent, a);
+    b = tsl_uf_find(parent, b);
+    if (a < b)
+        parent[b] = a;
+    else if (b < a)
+        parent[a] = b;
+}
+
 /* qsort comparison of uint32_t values, ascending. */
 int tsl_cmp_u32(const void *a, const void *b);
 

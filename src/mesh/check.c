@@ -74,17 +74,6 @@ int tessel_mesh_report_valid(const tessel_mesh_report *r)
 /* Small helpers                                                             */
 /* ------------------------------------------------------------------------ */
 
-/* Union-find: the smaller root becomes the root. */
-static void uf_unite(uint32_t *p, uint32_t a, uint32_t b)
-{
-    a = tsl_uf_find(p, a);
-    b = tsl_uf_find(p, b);
-    if (a < b)
-        p[b] = a;
-    else if (b < a)
-        p[a] = b;
-}
-
 /* Union-find whose links carry the parity "flipped relative to parent". */
 typedef struct parity_uf {
     uint32_t *parent, *size;
@@ -988,11 +977,11 @@ static tessel_status topology(const tessel_mesh *m, const uint8_t *kind, tessel_
             ne++;
             if (c == 1) {
                 nb++;
-                uf_unite(bnd, (uint32_t)lo, half[i].a);
+                tsl_uf_unite(bnd, (uint32_t)lo, half[i].a);
                 on_boundary[lo] = on_boundary[half[i].a] = 1;
             } else {
                 for (size_t t = i + 1; t < j; t++)
-                    uf_unite(comp, half[i].b >> 1, half[t].b >> 1);
+                    tsl_uf_unite(comp, half[i].b >> 1, half[t].b >> 1);
                 if (c == 2) {
                     uint8_t fa = half[i].b & 1, fb = half[i + 1].b & 1;
                     if (fa == fb)
@@ -1087,7 +1076,7 @@ static tessel_status topology(const tessel_mesh *m, const uint8_t *kind, tessel_
             }
             uint32_t ra = tsl_uf_find(lpar, pos[0]), rb = tsl_uf_find(lpar, pos[1]);
             if (ra != rb) {
-                uf_unite(lpar, ra, rb);
+                tsl_uf_unite(lpar, ra, rb);
                 groups--;
             }
         }

@@ -73,6 +73,12 @@ void tsl_trigrid_hits_free(tsl_trigrid_hits *h);
 tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint32_t **start,
                                  uint32_t **corner);
 
+/* Connected components by shared vertices: root[v] (nv entries, filled)
+ * is the smallest vertex of v's component (v itself for a vertex on no
+ * triangle). Triangles whose first vertex is TESSEL_NONE (removed) are
+ * skipped. */
+void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *root);
+
 /* Flips, in place, the diagonal of every pair of triangles whose angles
  * opposite it add up to more than pi (the Delaunay rule, which raises the
  * pair's smallest angle), pass after pass, with the refinement's checks

@@ -167,19 +167,7 @@ static tessel_status components(const tessel_mesh *m, uint32_t **comp, size_t **
         free(count);
         return TESSEL_ERR_NOMEM;
     }
-    for (size_t v = 0; v < nv; v++)
-        parent[v] = (uint32_t)v;
-    for (size_t t = 0; t < nt; t++) {
-        const uint32_t *c = m->triangles + 3 * t;
-        uint32_t r0 = tsl_uf_find(parent, c[0]);
-        for (int i = 1; i < 3; i++) {
-            uint32_t ri = tsl_uf_find(parent, c[i]);
-            if (ri != r0)
-                parent[ri] = r0;
-        }
-    }
-    for (size_t v = 0; v < nv; v++)
-        parent[v] = tsl_uf_find(parent, (uint32_t)v);
+    tsl_vertex_components(m->triangles, nt, nv, parent);
     for (size_t t = 0; t < nt; t++)
         count[parent[m->triangles[3 * t]]]++;
     *comp = parent;
