@@ -79,6 +79,139 @@ tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint
  * skipped. */
 void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *root);
 
+/* ---- checked local edits (mesh/edit.c, flip.c, split.c) ---- */
+
+/* Open-addressing map from an undirected edge to one of its half-edges,
+ * with backward-shift deletion. A slot holds key and value together: a
+ * lookup that misses the cache costs one line, not two. */
+typedef struct tsl_edge_slot {
+    uint64_t key; /* (min << 32 | max) + 1; 0 = empty */
+    uint32_t val;
+} tsl_edge_slot;
+
+typedef struct tsl_edge_map {
+    tsl_edge_slot *slot;
+    size_t slots, count;
+} tsl_edge_map;
+
+/* An empty map with room for `expected` edges without growing. */
+tessel_status tsl_edge_map_init(tsl_edge_map *m, size_t expected);
+void tsl_edge_map_free(tsl_edge_map *m);
+/* Sets the half-edge of {a, b}, adding the edge if new. */
+tessel_status tsl_edge_map_put(tsl_edge_map *m, uint32_t a, uint32_t b, uint32_t he);
+/* tsl_edge_map_put for several threads filling a map at once: the map was
+ * sized for every key (no growth), each key is put once, and nobody reads
+ * it until all are in. The caller sets m->count after. */
+void tsl_edge_map_put_shared(tsl_edge_map *m, uint32_t a, uint32_t b, uint32_t he);
+void tsl_edge_map_del(tsl_edge_map *m, uint32_t a, uint32_t b);
+
+static inline uint64_t tsl_edge_key(uint32_t a, uint32_t b)
+{
+    uint64_t lo = a < b ? a : b, hi = a < b ? b : a;
+    return (lo << 32 | hi) + 1;
+}
+
+static inline size_t tsl_edge_map_slot(const tsl_edge_map *m, uint64_t key)
+{
+    uint64_t h = key * 0x9E3779B97F4A7C15ULL;
+    return (size_t)(h ^ (h >> 31)) & (m->slots - 1);
+}
+
+/* The half-edge of {a, b}, or TESSEL_NONE. */
+static inline uint32_t tsl_edge_map_get(const tsl_edge_map *m, uint32_t a, uint32_t b)
+{
+    uint64_t key = tsl_edge_key(a, b);
+    for (size_t s = tsl_edge_map_slot(m, key); m->slot[s].key; s = (s + 1) & (m->slots - 1))
+        if (m->slot[s].key == key)
+            return m->slot[s].val;
+    return TESSEL_NONE;
+}
+
+/* Asks for the line of {a, b}'s home slot ahead of a tsl_edge_map_get. */
+static inline void tsl_edge_map_prefetch(const tsl_edge_map *m, uint32_t a, uint32_t b)
+{
+    __builtin_prefetch(&m->slot[tsl_edge_map_slot(m, tsl_edge_key(a, b))]);
+}
+
+/* What the edits did. */
+typedef struct tsl_edit_counts {
+    size_t splits, flips;
+    size_t skipped_skinny;  /* splits refused for a too skinny triangle */
+    size_t skipped_invalid; /* edits refused by the checks */
+} tsl_edit_counts;
+
+/* A mesh under checked edits. The caller fills the vertices, the
+ * triangles and their capacities (cap_v, cap_t; the edits grow xyz_own,
+ * rgb, tri, twin and box beyond them), after tsl_edit_init. */
+typedef struct tsl_edit {
+    const float *xyz; /* the vertices: xyz_own, or the caller's points when
+                         only flipping (tsl_flip_diagonals never splits) */
+    float *xyz_own;   /* a copy that splits grow */
+    uint8_t *rgb;     /* NULL when the mesh has no colours */
+    size_t nv, cap_v;
+    uint32_t *tri;  /* 3 per triangle */
+    uint32_t *twin; /* per half-edge 3t+i (tri[3t+i] -> tri[3t+(i+1)%3]) */
+    float *box;     /* per triangle: lo[3], hi[3] of its current corners */
+    size_t nt, cap_t;
+    tsl_edge_map edges;
+    tsl_trigrid grid;
+    double cos_turn;
+    bool delaunay; /* the flip rule: see flip_edge */
+    tsl_edit_counts counts;
+    double lo[3], hi[3]; /* the triangles' box when the grid was built */
+    struct tsl_edit_worker *serial; /* the checks and edits outside parallel phases */
+    /* pinched[v]: vertex v (v < npinched) has more than one fan; NULL when
+     * none has. tsl_edit_edge_exists sees one fan only, so their flips go to
+     * the serial tail, which asks the edge map. */
+    uint8_t *pinched;
+    size_t npinched;
+} tsl_edit;
+
+/* An empty editable mesh (no vertices, no triangles). */
+tessel_status tsl_edit_init(tsl_edit *e);
+/* Frees everything e holds (tri too: set it to NULL first when it is the
+ * caller's). */
+void tsl_edit_free(tsl_edit *e);
+/* Twins (in parallel) and the edge map (each edge at its half-edge of
+ * smaller id), and e->pinched for vertices with more than one fan;
+ * INVALID_ARG for a non-manifold or inconsistently oriented mesh or a
+ * triangle with a repeated or bad vertex. */
+tessel_status tsl_edit_topology(tsl_edit *e, int threads);
+/* A fresh triangle grid, with cells two mean edges wide, over the
+ * triangles' boxes (a point no triangle uses must not stretch the cells). */
+tessel_status tsl_edit_grid(tsl_edit *e);
+/* Flips, pass after pass, every diagonal the rule asks for (e->delaunay:
+ * the opposite angles add up to more than pi; else the other diagonal is
+ * shorter) and the checks allow, in parallel; the result depends on the
+ * mesh only, not on the thread count. Needs the topology and the grid. */
+tessel_status tsl_edit_flips(tsl_edit *e, int threads);
+
+/* A split: the edge {u, v} at a new vertex at pos. */
+typedef struct tsl_split_job {
+    uint32_t u, v;
+    float pos[3];
+} tsl_split_job;
+
+/* The splits jobs[want[0 .. n)], in that order, each checked, in parallel
+ * blocks; a split whose triangles have their shortest edge under min_ratio
+ * times their longest is not made. The result depends on the mesh only,
+ * not on the thread count. */
+tessel_status tsl_edit_splits(tsl_edit *e, const tsl_split_job *jobs, const uint32_t *want,
+                              size_t n, double min_ratio, int threads);
+/* Area-weighted unit vertex normals, 3 * e->nv doubles (allocated). */
+tessel_status tsl_edit_vertex_normals(const tsl_edit *e, double **out);
+
+static inline void tsl_edit_point(const tsl_edit *e, uint32_t v, double out[3])
+{
+    tsl_load(e->xyz + 3 * (size_t)v, out);
+}
+/* The ends of half-edge h. */
+static inline uint32_t tsl_he_from(const tsl_edit *e, uint32_t h) { return e->tri[h]; }
+static inline uint32_t tsl_he_to(const tsl_edit *e, uint32_t h)
+{
+    return e->tri[h - h % 3 + (h % 3 + 1) % 3];
+}
+
 /* Flips, in place, the diagonal of every pair of triangles whose angles
  * opposite it add up to more than pi (the Delaunay rule, which raises the
  * pair's smallest angle), pass after pass, with the refinement's checks
