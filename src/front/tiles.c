@@ -1,0 +1,687 @@
+/* Tiles of the advancing front: more than tile_points points are cut
+ * into tiles by recursive median bisection, the tiles' fronts run in
+ * parallel, their components are oriented against each other, and the
+ * front over all points starts from their triangles to close the seams.
+ * Also the start of a front from a caller's mesh
+ * (tsl_advancing_front_from). */
+#include "front/front.h"
+
+#include <float.h>
+#include <omp.h>
+#include <stdatomic.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------------ */
+/* Tiles                                                                     */
+/* ------------------------------------------------------------------------ */
+
+/* More than tile_points points are cut into tiles by recursive median
+ * bisection, each part along the longest side of its box. Each tile's front
+ * runs on the tile's points alone, the tiles in parallel. The triangles of
+ * all tiles, less those with a vertex within TILE_BAND mean spacings of a
+ * cut, then become the mesh the front over all points starts from: its
+ * border edges are the front, and it closes the seams as it closes any
+ * place where two fronts meet. Tiles depend on the points and tile_points
+ * only, so the result does not depend on the thread count. */
+#define TILE_BAND 0.5
+
+/* The tiles' components are oriented against each other by their
+ * triangles within this many mean spacings beyond the band of a cut ... */
+#define TILE_VOTE_REACH 4.0
+/* ... each with its nearest triangle of another component within this
+ * many mean spacings beyond the two bands (see orient_tiles). */
+#define TILE_PAIR_REACH 4.0
+/* Share of the progress bar given to the tiles (the front over all points,
+ * which starts with their triangles, reports the rest). */
+#define TILE_PROGRESS 0.9
+
+typedef struct tile_key {
+    float c;
+    uint32_t id;
+} tile_key;
+
+typedef struct tile_range {
+    size_t lo, hi; /* the tile's points: ids[lo .. hi) */
+} tile_range;
+
+static inline bool key_less(tile_key a, tile_key b)
+{
+    return a.c < b.c || (a.c == b.c && a.id < b.id);
+}
+
+static int cmp_key(const void *pa, const void *pb)
+{
+    const tile_key *a = pa, *b = pb;
+    return key_less(*a, *b) ? -1 : key_less(*b, *a);
+}
+
+/* Puts the k-th smallest of a[0 .. n) at k, smaller keys before it and
+ * larger after (quickselect; keys are distinct through the ids). */
+static void select_key(tile_key *a, size_t n, size_t k)
+{
+    long long lo = 0, hi = (long long)n - 1;
+    for (int rounds = 0; hi > lo; rounds++) {
+        if (rounds == 64) { /* a pathological order: sort the rest */
+            qsort(a + lo, (size_t)(hi - lo + 1), sizeof *a, cmp_key);
+            return;
+        }
+        long long mid = lo + (hi - lo) / 2;
+        tile_key tmp;
+#define SWAP_KEYS(x, y) (tmp = a[x], a[x] = a[y], a[y] = tmp)
+        if (key_less(a[mid], a[lo]))
+            SWAP_KEYS(mid, lo);
+        if (key_less(a[hi], a[lo]))
+            SWAP_KEYS(hi, lo);
+        if (key_less(a[hi], a[mid]))
+            SWAP_KEYS(hi, mid);
+        tile_key pivot = a[mid];
+        long long i = lo - 1, j = hi + 1;
+        for (;;) {
+            do
+                i++;
+            while (key_less(a[i], pivot));
+            do
+                j--;
+            while (key_less(pivot, a[j]));
+            if (i >= j)
+                break;
+            SWAP_KEYS(i, j);
+        }
+#undef SWAP_KEYS
+        if ((long long)k <= j)
+            hi = j;
+        else
+            lo = j + 1;
+    }
+}
+
+/* Cuts ids[lo .. hi) into tiles of at most max_points points; dcut[i]
+ * becomes the distance of point i to the nearest cut bounding its tile. */
+static void bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, size_t hi,
+                   size_t max_points, float *dcut, tile_range *tiles, size_t *ntiles)
+{
+    size_t m = hi - lo;
+    if (m <= max_points) {
+        tiles[*ntiles].lo = lo;
+        tiles[*ntiles].hi = hi;
+        (*ntiles)++;
+        return;
+    }
+    float bl[3] = {INFINITY, INFINITY, INFINITY}, bh[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t u = lo; u < hi; u++)
+        for (int c = 0; c < 3; c++) {
+            float x = xyz[3 * (size_t)ids[u] + c];
+            bl[c] = x < bl[c] ? x : bl[c];
+            bh[c] = x > bh[c] ? x : bh[c];
+        }
+    int axis = 0;
+    for (int c = 1; c < 3; c++)
+        if (bh[c] - bl[c] > bh[axis] - bl[axis])
+            axis = c;
+    for (size_t u = 0; u < m; u++) {
+        keys[u].c = xyz[3 * (size_t)ids[lo + u] + axis];
+        keys[u].id = ids[lo + u];
+    }
+    size_t half = m / 2;
+    select_key(keys, m, half);
+    float left = -INFINITY;
+    for (size_t u = 0; u < half; u++)
+        left = keys[u].c > left ? keys[u].c : left;
+    double cut = 0.5 * ((double)left + (double)keys[half].c);
+    for (size_t u = 0; u < m; u++) {
+        ids[lo + u] = keys[u].id;
+        float d = (float)fabs((double)keys[u].c - cut);
+        if (d < dcut[keys[u].id])
+            dcut[keys[u].id] = d;
+    }
+    bisect(xyz, ids, keys, lo, lo + half, max_points, dcut, tiles, ntiles);
+    bisect(xyz, ids, keys, lo + half, hi, max_points, dcut, tiles, ntiles);
+}
+
+/* Progress of the tiles: the calling thread reports the tiles finished
+ * plus its current tile's part (the callback is never called from two
+ * threads); a cancellation stops every tile. */
+typedef struct tile_ctx {
+    const tessel_callbacks *user;
+    size_t tiles;
+    atomic_int *finished, *cancel;
+} tile_ctx;
+
+static int tile_progress(void *data, const char *stage, double fraction)
+{
+    tile_ctx *c = data;
+    if (atomic_load(c->cancel))
+        return 1;
+    if (omp_get_thread_num() != 0)
+        return 0;
+    double done = ((double)atomic_load(c->finished) + fraction) / (double)c->tiles;
+    if (tsl_progress(c->user, stage, TILE_PROGRESS * (done < 1.0 ? done : 1.0)) != TESSEL_OK) {
+        atomic_store(c->cancel, 1);
+        return 1;
+    }
+    return 0;
+}
+
+/* The front of one tile: points ids[0 .. m) of g, whose neighbour lists
+ * keep the neighbours in the same tile (local[] maps a point to its place
+ * in its tile), from the starting triangles start[0 .. nstart) (local
+ * ids) when there are any. */
+static tessel_status tile_front(const af *g, const tessel_front_params *p, const uint32_t *ids,
+                                size_t m, uint32_t tile, const uint32_t *tile_of,
+                                const uint32_t *local, const uint32_t *start, size_t nstart,
+                                const tessel_callbacks *cb, af *t)
+{
+    memset(t, 0, sizeof *t);
+    t->n = m;
+    t->k = g->k;
+    tsl_af_params(t, p);
+    size_t blocks = 1 + (g->pnormals != NULL) + (g->lines != NULL);
+    t->own = tsl_alloc_array(3 * m * blocks, sizeof *t->own);
+    t->knn = tsl_alloc_array(m * (size_t)g->k, sizeof *t->knn);
+    t->nnd = tsl_alloc_array(m, sizeof *t->nnd);
+    t->dup = tsl_alloc_array(m, sizeof *t->dup);
+    t->ln = tsl_alloc_array(3 * m, sizeof *t->ln);
+    t->vsign = tsl_calloc_array(m, sizeof *t->vsign);
+    if (!t->own || !t->knn || !t->nnd || !t->dup || !t->ln || !t->vsign)
+        return TESSEL_ERR_NOMEM;
+    float *xyz = t->own, *nrm = g->pnormals ? t->own + 3 * m : NULL,
+          *lines = g->lines ? t->own + 3 * m * (blocks - 1) : NULL;
+    for (size_t u = 0; u < m; u++) {
+        size_t i = ids[u];
+        memcpy(xyz + 3 * u, g->xyz + 3 * i, 3 * sizeof *xyz);
+        if (nrm)
+            memcpy(nrm + 3 * u, g->pnormals + 3 * i, 3 * sizeof *nrm);
+        if (lines)
+            memcpy(lines + 3 * u, g->lines + 3 * i, 3 * sizeof *lines);
+        memcpy(t->ln + 3 * u, g->ln + 3 * i, 3 * sizeof *t->ln);
+        t->nnd[u] = g->nnd[i];
+        t->dup[u] = g->dup[i];
+        const uint32_t *row = g->knn + i * g->k;
+        uint32_t *out = t->knn + u * g->k, got = 0;
+        for (uint32_t j = 0; j < g->k; j++)
+            if (row[j] != NONE && tile_of[row[j]] == tile)
+                out[got++] = local[row[j]];
+        for (; got < g->k; got++)
+            out[got] = NONE;
+    }
+    t->xyz = xyz;
+    t->pnormals = nrm;
+    t->lines = lines;
+    tessel_status st = tsl_af_alloc_mesh(t, g->cell);
+    if (!st && nstart)
+        st = tsl_af_place_start(t, start, nstart);
+    return st ? st : tsl_af_run_fronts(t, cb);
+}
+
+/* Agreement between two tile components: the sum of the dot products of
+ * nearby triangles' normals across cuts. */
+typedef struct tile_pair {
+    uint32_t a, b; /* component ids, a < b */
+    double w;
+} tile_pair;
+
+static int cmp_pair_ids(const void *pa, const void *pb)
+{
+    const tile_pair *x = pa, *y = pb;
+    if (x->a != y->a)
+        return x->a < y->a ? -1 : 1;
+    return x->b < y->b ? -1 : (x->b > y->b);
+}
+
+static int cmp_pair_weight(const void *pa, const void *pb)
+{
+    const tile_pair *x = pa, *y = pb;
+    double u = fabs(x->w), v = fabs(y->w);
+    if (u != v)
+        return u > v ? -1 : 1;
+    return cmp_pair_ids(pa, pb);
+}
+
+/* Root of component c and, in *flip, whether c is reversed against it. */
+static uint32_t parity_root(const uint32_t *up, const uint8_t *rel, uint32_t c, uint8_t *flip)
+{
+    *flip = 0;
+    while (up[c] != c) {
+        *flip ^= rel[c];
+        c = up[c];
+    }
+    return c;
+}
+
+/* Parities of the components (rel to up, see parity_root) from their
+ * pairs, strongest first, leaving out dropped components. */
+static void spanning_parity(const tile_pair *pairs, size_t np, size_t ncomp, const uint8_t *drop,
+                            uint32_t *up, uint8_t *rel)
+{
+    for (size_t c = 0; c < ncomp; c++) {
+        up[c] = (uint32_t)c;
+        rel[c] = 0;
+    }
+    for (size_t i = 0; i < np; i++) {
+        if (drop[pairs[i].a] || drop[pairs[i].b])
+            continue;
+        uint8_t fa, fb;
+        uint32_t ra = parity_root(up, rel, pairs[i].a, &fa);
+        uint32_t rb = parity_root(up, rel, pairs[i].b, &fb);
+        if (ra == rb)
+            continue;
+        uint32_t keep = ra < rb ? ra : rb, under = ra < rb ? rb : ra;
+        up[under] = keep;
+        rel[under] = (uint8_t)(fa ^ fb ^ (pairs[i].w < 0.0));
+    }
+}
+
+/* Orients the tiles' components (comp[t] for triangle t, ncomp of them)
+ * against each other: a pair of components facing each other across a cut
+ * agree or disagree by the normals of their nearest triangles there
+ * (triangles with a vertex within near of a cut, nearest centroid of
+ * another tile within radius); the strongest agreements are taken first
+ * (a maximum spanning forest), so a weak or wrong one cannot override
+ * them. Reversed components get their triangles turned. */
+static tessel_status orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count,
+                                  size_t ncomp, const float *xyz, const float *dcut, double near,
+                                  double radius, double cell, size_t small, uint8_t *drop)
+{
+    size_t nl = 0;
+    for (size_t t = 0; t < count; t++) {
+        const uint32_t *v = tri + 3 * t;
+        nl += dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near;
+    }
+    uint32_t *list = tsl_alloc_array(nl + 1, sizeof *list);
+    double *geo = tsl_alloc_array(6 * nl + 1, sizeof *geo); /* centroid, normal */
+    tile_pair *pairs = tsl_alloc_array(nl + 1, sizeof *pairs);
+    uint32_t *up = tsl_alloc_array(ncomp + 1, sizeof *up);
+    uint8_t *rel = tsl_calloc_array(ncomp + 1, sizeof *rel);
+    size_t *size = tsl_calloc_array(ncomp + 1, sizeof *size);
+    double *total = tsl_alloc_array(ncomp + 1, sizeof *total);
+    double *agree = tsl_alloc_array(ncomp + 1, sizeof *agree);
+    tsl_trigrid grid;
+    memset(&grid, 0, sizeof grid);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!list || !geo || !pairs || !up || !rel || !size || !total || !agree)
+        goto done;
+    memset(drop, 0, ncomp);
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    nl = 0;
+    for (size_t t = 0; t < count; t++) {
+        const uint32_t *v = tri + 3 * t;
+        if (!(dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near))
+            continue;
+        double p[3][3], *g = geo + 6 * nl;
+        for (int i = 0; i < 3; i++)
+            tsl_load(xyz + 3 * (size_t)v[i], p[i]);
+        tsl_af_tri_normal(p[0], p[1], p[2], g + 3);
+        for (int c = 0; c < 3; c++) {
+            g[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
+            lo[c] = dmin(lo[c], g[c]);
+            hi[c] = dmax(hi[c], g[c]);
+        }
+        list[nl++] = (uint32_t)t;
+    }
+    if ((st = tsl_trigrid_init(&grid, lo, hi, cell)))
+        goto done;
+    for (size_t i = 0; i < nl; i++)
+        if ((st = tsl_trigrid_insert(&grid, (uint32_t)i, geo + 6 * i, geo + 6 * i)))
+            goto done;
+    size_t np = 0;
+    for (size_t i = 0; i < nl; i++) {
+        const double *g = geo + 6 * i;
+        double blo[3], bhi[3];
+        for (int c = 0; c < 3; c++) {
+            blo[c] = g[c] - radius;
+            bhi[c] = g[c] + radius;
+        }
+        if ((st = tsl_trigrid_query(&grid, blo, bhi)))
+            goto done;
+        double best = radius * radius;
+        uint32_t best_j = NONE;
+        for (size_t f = 0; f < grid.hits.count; f++) {
+            uint32_t j = grid.hits.found[f];
+            if (comp[list[j]] == comp[list[i]])
+                continue;
+            double d[3], h;
+            tsl_sub(geo + 6 * (size_t)j, g, d);
+            double d2 = tsl_dot(d, d);
+            /* Only along the surface: the other side of a thin part lies
+             * off the tangent plane and faces the other way. */
+            h = tsl_dot(d, g + 3);
+            if (4.0 * h * h > d2)
+                continue;
+            if (d2 < best || (d2 == best && j < best_j)) {
+                best = d2;
+                best_j = j;
+            }
+        }
+        if (best_j == NONE)
+            continue;
+        uint32_t ca = comp[list[i]], cb = comp[list[best_j]];
+        pairs[np].a = ca < cb ? ca : cb;
+        pairs[np].b = ca < cb ? cb : ca;
+        pairs[np].w = tsl_dot(g + 3, geo + 6 * (size_t)best_j + 3);
+        np++;
+    }
+    qsort(pairs, np, sizeof *pairs, cmp_pair_ids);
+    size_t merged = 0;
+    for (size_t i = 0; i < np; i++) {
+        if (merged && pairs[merged - 1].a == pairs[i].a && pairs[merged - 1].b == pairs[i].b)
+            pairs[merged - 1].w += pairs[i].w;
+        else
+            pairs[merged++] = pairs[i];
+    }
+    qsort(pairs, merged, sizeof *pairs, cmp_pair_weight);
+    /* A component whose pairs disagree with the forest by more than a
+     * quarter of their weight is dropped too (its neighbours across the
+     * cuts contradict each other: a fold, another sheet), and the forest
+     * is built again without it. */
+    for (int round = 0; round < 2; round++) {
+        spanning_parity(pairs, merged, ncomp, drop, up, rel);
+        if (round == 1)
+            break;
+        memset(total, 0, ncomp * sizeof *total);
+        memset(agree, 0, ncomp * sizeof *agree);
+        for (size_t i = 0; i < merged; i++) {
+            if (drop[pairs[i].a] || drop[pairs[i].b])
+                continue;
+            uint8_t fa, fb;
+            parity_root(up, rel, pairs[i].a, &fa);
+            parity_root(up, rel, pairs[i].b, &fb);
+            double w = fa == fb ? pairs[i].w : -pairs[i].w;
+            total[pairs[i].a] += fabs(w);
+            total[pairs[i].b] += fabs(w);
+            agree[pairs[i].a] += w;
+            agree[pairs[i].b] += w;
+        }
+        for (size_t c = 0; c < ncomp; c++)
+            if (agree[c] < 0.5 * total[c])
+                drop[c] = 1;
+    }
+    /* Small pieces at a cut (a tile's corner of the surface, the tip of a
+     * thin part) relay the orientation between their neighbours, then are
+     * left to the front over all points, which joins them better. */
+    for (size_t t = 0; t < count; t++)
+        size[comp[t]]++;
+    for (size_t t = 0; t < count; t++) {
+        const uint32_t *v = tri + 3 * t;
+        if ((dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near) &&
+            size[comp[t]] < small)
+            drop[comp[t]] = 1;
+    }
+    for (size_t t = 0; t < count; t++) {
+        uint8_t f;
+        parity_root(up, rel, comp[t], &f);
+        if (f)
+            tsl_af_flip_triangle(tri + 3 * t);
+    }
+    st = TESSEL_OK;
+done:
+    tsl_trigrid_free(&grid);
+    free(list);
+    free(geo);
+    free(pairs);
+    free(up);
+    free(rel);
+    free(size);
+    free(total);
+    free(agree);
+    return st;
+}
+
+/* Makes the triangles of s (a starting mesh: the tiles' or a caller's) a
+ * front: every edge on one triangle becomes a border edge, queued, linked
+ * along its loop. */
+static tessel_status border_of_mesh(af *s)
+{
+    size_t first = s->ne;
+    for (size_t t = 0; t < s->nt; t++)
+        for (int i = 0; i < 3; i++) {
+            uint32_t x = s->tri[3 * t + i], y = s->tri[3 * t + (i + 1) % 3];
+            bool twin = false;
+            for (uint32_t c = s->vhead[x]; c != NONE && !twin; c = s->cnext[c])
+                twin = s->tri[3 * (size_t)(c / 3) + (c + 2) % 3] == y;
+            if (twin)
+                continue;
+            uint32_t id;
+            tessel_status st = tsl_af_new_edge(s, x, y, (uint32_t)t, &id);
+            if (st)
+                return st;
+            s->vout[x] = id;
+            s->vin[y] = id;
+        }
+    for (size_t e = first; e < s->ne; e++)
+        link_edges(s, (uint32_t)e, s->vout[s->e[e].to]);
+    for (size_t i = 0; i < s->n; i++)
+        s->used += s->vhead[i] != NONE;
+    return TESSEL_OK;
+}
+
+/* Adds tri[0 .. count) to s, less those whose component comp[t] is dropped
+ * (drop NULL: none), and makes their border edges the front. */
+static tessel_status import_mesh(af *s, const uint32_t *tri, size_t count, const uint32_t *comp,
+                                 const uint8_t *drop)
+{
+    for (size_t t = 0; t < count; t++) {
+        uint32_t id;
+        if (drop && drop[comp[t]])
+            continue;
+        tessel_status st = tsl_af_add_triangle(s, tri[3 * t], tri[3 * t + 1], tri[3 * t + 2], &id);
+        if (st)
+            return st;
+    }
+    return border_of_mesh(s);
+}
+
+/* Places the tiles' triangles (tiles[0 .. nt), points ids[range]) in s,
+ * less the band along the cuts and the components orient_tiles drops,
+ * the rest oriented against each other. */
+static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range, size_t nt,
+                                 const uint32_t *ids, const float *dcut, double mean_nn,
+                                 size_t small)
+{
+    size_t total = 0;
+    for (size_t k = 0; k < nt; k++)
+        total += tiles[k].nt - tiles[k].deleted;
+    double band = TILE_BAND * mean_nn;
+    uint32_t *tri = tsl_alloc_array(3 * total + 1, sizeof *tri);
+    uint8_t *touched = tsl_calloc_array(s->n, sizeof *touched);
+    uint32_t *parent = tsl_alloc_array(s->n, sizeof *parent);
+    uint32_t *cid = tsl_alloc_array(s->n, sizeof *cid);
+    uint32_t *comp = tsl_alloc_array(total + 1, sizeof *comp);
+    uint8_t *drop = NULL;
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!tri || !touched || !parent || !cid || !comp)
+        goto done;
+    size_t count = 0;
+    for (size_t k = 0; k < nt; k++) {
+        const af *a = &tiles[k];
+        for (size_t t = 0; t < a->nt; t++) {
+            if (a->tri[3 * t] == NONE)
+                continue;
+            uint32_t v[3];
+            bool keep = true;
+            for (int i = 0; i < 3; i++) {
+                v[i] = ids[range[k].lo + a->tri[3 * t + i]];
+                keep = keep && !(dcut[v[i]] < band);
+            }
+            if (!keep) {
+                for (int i = 0; i < 3; i++)
+                    touched[v[i]] = 1;
+                continue;
+            }
+            memcpy(tri + 3 * count, v, sizeof v);
+            count++;
+        }
+    }
+    if ((st = tsl_single_fans(s->n, tri, &count, touched)))
+        goto done;
+    /* Components (edge-connected: every vertex has a single fan). */
+    tsl_vertex_components(tri, count, s->n, parent);
+    size_t ncomp = 0;
+    for (size_t i = 0; i < s->n; i++)
+        cid[i] = NONE;
+    for (size_t t = 0; t < count; t++) {
+        uint32_t r = tsl_uf_find(parent, tri[3 * t]);
+        if (cid[r] == NONE)
+            cid[r] = (uint32_t)ncomp++;
+        comp[t] = cid[r];
+    }
+    if (!(drop = tsl_alloc_array(ncomp + 1, sizeof *drop))) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    if ((st = orient_tiles(tri, comp, count, ncomp, s->xyz, dcut,
+                           band + TILE_VOTE_REACH * mean_nn,
+                           2.0 * band + TILE_PAIR_REACH * mean_nn, s->cell, small, drop)))
+        goto done;
+    st = import_mesh(s, tri, count, comp, drop);
+done:
+    free(tri);
+    free(touched);
+    free(parent);
+    free(cid);
+    free(comp);
+    free(drop);
+    return st;
+}
+
+/* The tile holding all three corners of triangle v, or NONE. */
+static inline uint32_t tile_holding(const uint32_t *tile_of, const uint32_t v[3])
+{
+    uint32_t k = tile_of[v[0]];
+    return tile_of[v[1]] == k && tile_of[v[2]] == k ? k : NONE;
+}
+
+/* Fronts in tiles of at most p->tile_points points, in parallel, each from
+ * the triangles of start[0 .. nstart) with all three corners in it; their
+ * triangles, less the seams, become s's starting mesh. */
+tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_nn,
+                               const uint32_t *start, size_t nstart, const tessel_callbacks *cb)
+{
+    size_t cap = 2 * (s->n / p->tile_points) + 2, nt = 0;
+    uint32_t *ids = tsl_alloc_array(s->n, sizeof *ids);
+    uint32_t *tile_of = tsl_alloc_array(s->n, sizeof *tile_of);
+    uint32_t *local = tsl_alloc_array(s->n, sizeof *local);
+    float *dcut = tsl_alloc_array(s->n, sizeof *dcut);
+    tile_key *keys = tsl_alloc_array(s->n, sizeof *keys);
+    tile_range *range = tsl_alloc_array(cap, sizeof *range);
+    af *tiles = tsl_calloc_array(cap, sizeof *tiles);
+    tessel_status *status = tsl_alloc_array(cap, sizeof *status);
+    tile_ctx *ctx = tsl_alloc_array(cap, sizeof *ctx);
+    tessel_callbacks *tcb = tsl_alloc_array(cap, sizeof *tcb);
+    uint32_t *tstart = tsl_alloc_array(3 * nstart + 1, sizeof *tstart);
+    size_t *sfrom = tsl_calloc_array(cap + 1, sizeof *sfrom);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!ids || !tile_of || !local || !dcut || !keys || !range || !tiles || !status || !ctx ||
+        !tcb || !tstart || !sfrom)
+        goto done;
+    for (size_t i = 0; i < s->n; i++) {
+        ids[i] = (uint32_t)i;
+        dcut[i] = INFINITY;
+    }
+    bisect(s->xyz, ids, keys, 0, s->n, p->tile_points, dcut, range, &nt);
+    free(keys);
+    keys = NULL;
+    for (size_t k = 0; k < nt; k++)
+        for (size_t u = range[k].lo; u < range[k].hi; u++)
+            tile_of[ids[u]] = (uint32_t)k;
+    /* Each tile's points in their input order, as one front would see
+     * them (seeds are taken in that order). */
+    for (size_t k = 0; k < nt; k++)
+        local[k] = (uint32_t)range[k].lo;
+    for (size_t i = 0; i < s->n; i++)
+        ids[local[tile_of[i]]++] = (uint32_t)i;
+    for (size_t i = 0; i < s->n; i++)
+        local[ids[i]] = (uint32_t)(i - range[tile_of[ids[i]]].lo);
+    /* The starting triangles by tile, in their order, in local ids (those
+     * across a cut are left to the front that joins the tiles). */
+    for (size_t t = 0; t < nstart; t++) {
+        uint32_t k = tile_holding(tile_of, start + 3 * t);
+        if (k != NONE)
+            sfrom[k + 1]++;
+    }
+    for (size_t k = 0; k < nt; k++)
+        sfrom[k + 1] += sfrom[k];
+    for (size_t t = 0; t < nstart; t++) {
+        const uint32_t *v = start + 3 * t;
+        uint32_t k = tile_holding(tile_of, v);
+        if (k == NONE)
+            continue;
+        size_t at = 3 * sfrom[k]++;
+        for (int i = 0; i < 3; i++)
+            tstart[at + (size_t)i] = local[v[i]];
+    }
+    for (size_t k = nt; k-- > 0;) /* sfrom[k] was advanced to tile k's end */
+        sfrom[k + 1] = sfrom[k];
+    sfrom[0] = 0;
+    atomic_int cancel, finished;
+    atomic_init(&cancel, 0);
+    atomic_init(&finished, 0);
+    for (size_t k = 0; k < nt; k++) {
+        ctx[k].user = cb;
+        ctx[k].tiles = nt;
+        ctx[k].finished = &finished;
+        ctx[k].cancel = &cancel;
+        tcb[k].progress = tile_progress;
+        tcb[k].log = NULL;
+        tcb[k].user_data = &ctx[k];
+    }
+    long long count = (long long)nt;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(p->threads))
+    for (long long kk = 0; kk < count; kk++) {
+        size_t k = (size_t)kk;
+        status[k] = tile_front(s, p, ids + range[k].lo, range[k].hi - range[k].lo,
+                               (uint32_t)k, tile_of, local, tstart + 3 * sfrom[k],
+                               sfrom[k + 1] - sfrom[k], &tcb[k], &tiles[k]);
+        atomic_fetch_add(&finished, 1);
+    }
+    st = TESSEL_OK;
+    for (size_t k = 0; k < nt && !st; k++)
+        st = status[k];
+    if (st)
+        goto done;
+    for (size_t k = 0; k < nt; k++) {
+        s->stats.seeds += tiles[k].stats.seeds;
+        s->stats.bridges += tiles[k].stats.bridges;
+        s->stats.hole_triangles += tiles[k].stats.hole_triangles;
+        s->stats.eroded_triangles += tiles[k].stats.eroded_triangles;
+    }
+    st = place_tiles(s, tiles, range, nt, ids, dcut, mean_nn, p->tile_points / 4);
+done:
+    if (tiles)
+        for (size_t k = 0; k < nt; k++)
+            tsl_af_free(&tiles[k]);
+    free(ids);
+    free(tile_of);
+    free(local);
+    free(dcut);
+    free(keys);
+    free(range);
+    free(tiles);
+    free(status);
+    free(ctx);
+    free(tcb);
+    free(tstart);
+    free(sfrom);
+    return st;
+}
+
+/* Places the starting triangles in s (see tsl_advancing_front_from). */
+tessel_status tsl_af_place_start(af *s, const uint32_t *start, size_t count)
+{
+    uint32_t *tri = tsl_alloc_array(3 * count + 1, sizeof *tri);
+    uint8_t *touched = tsl_calloc_array(s->n, sizeof *touched);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!tri || !touched)
+        goto done;
+    memcpy(tri, start, 3 * count * sizeof *tri);
+    for (size_t c = 0; c < 3 * count; c++)
+        touched[tri[c]] = 1;
+    if ((st = tsl_single_fans(s->n, tri, &count, touched)))
+        goto done;
+    st = import_mesh(s, tri, count, NULL, NULL);
+done:
+    free(tri);
+    free(touched);
+    return st;
+}
