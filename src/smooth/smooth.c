@@ -717,6 +717,233 @@ tessel_status tessel_smooth(const tessel_cloud *cloud, tessel_cloud *out,
     return tsl_smooth_timed(cloud, out, params, callbacks, stats, false, &unused);
 }
 
+/* The grid comes first: when h is not given, its cells find the nearest
+ * neighbours that measure it (tessel_cloud_spacing's value, without
+ * building a kd-tree). Cells a little wider than the distance to the k-th
+ * neighbour, at most the cut-off 3 sigma_w h. */
+static tessel_status grid_and_spacing(const tessel_cloud *cloud, const tessel_smooth_params *p,
+                                      int threads, tsl_grid *g, double *h_out,
+                                      double *seconds_spacing)
+{
+    size_t n = cloud->count;
+    double h = p->spacing, cell = tsl_grid_knn_cell(cloud->xyz, n, p->k);
+    if (h > 0.0)
+        cell = fmin(cell, 3.0 * p->sigma_w * h);
+    tessel_status st = tsl_grid_build(g, cloud->xyz, n, cell, threads);
+    if (st == TESSEL_OK && !(h > 0.0)) {
+        double t0 = tsl_seconds();
+        st = tsl_grid_spacing(g, cloud->xyz, n, threads, &h);
+        if (st == TESSEL_OK && !isfinite(h))
+            st = TESSEL_ERR_TOO_FEW_POINTS; /* no scale to smooth at */
+        if (st == TESSEL_OK && g->c > 3.0 * p->sigma_w * h) {
+            tsl_grid_free(g);
+            st = tsl_grid_build(g, cloud->xyz, n, 3.0 * p->sigma_w * h, threads);
+        }
+        *seconds_spacing = tsl_seconds() - t0;
+    }
+    *h_out = h;
+    return st;
+}
+
+/* What the passes read and write, by sorted position. */
+typedef struct pass_bufs {
+    float *buf[4];      /* xyz a, xyz b, normals a, b: passes alternate */
+    uint32_t *nb;       /* neighbour lists, for later passes and aggregation */
+    uint16_t *cnt;
+    float *ref0;        /* the input's normals, when it has some */
+    fit_surface *surf;  /* params.aggregate */
+} pass_bufs;
+
+static void bufs_free(pass_bufs *b)
+{
+    for (int i = 0; i < 4; i++)
+        free(b->buf[i]);
+    free(b->nb);
+    free(b->cnt);
+    free(b->ref0);
+    free(b->surf);
+    memset(b, 0, sizeof *b);
+}
+
+static tessel_status bufs_alloc(const tessel_cloud *cloud, const tessel_smooth_params *p,
+                                const tsl_grid *g, pass_bufs *b)
+{
+    size_t n = cloud->count;
+    memset(b, 0, sizeof *b);
+    tessel_status st = TESSEL_OK;
+    for (int i = 0; i < 4; i++)
+        if (!(b->buf[i] = tsl_alloc_array(n, 3 * sizeof(float))))
+            st = TESSEL_ERR_NOMEM;
+    /* The neighbour lists serve later passes and the aggregation only
+     * (one pass, as the noisy pipeline runs, writes 120 bytes per point
+     * less). */
+    bool keep_nb = p->passes > 1 || p->aggregate;
+    if (keep_nb) {
+        b->nb = tsl_alloc_array(n, (size_t)p->k * sizeof *b->nb);
+        b->cnt = tsl_alloc_array(n, sizeof *b->cnt);
+    }
+    if (p->aggregate)
+        b->surf = tsl_alloc_array(n, sizeof *b->surf);
+    if ((keep_nb && (!b->nb || !b->cnt)) || (p->aggregate && !b->surf))
+        st = TESSEL_ERR_NOMEM;
+    if (st == TESSEL_OK && cloud->normals) {
+        if (!(b->ref0 = tsl_alloc_array(n, 3 * sizeof(float))))
+            return TESSEL_ERR_NOMEM;
+        for (size_t s = 0; s < n; s++)
+            memcpy(b->ref0 + 3 * s, cloud->normals + 3 * (size_t)g->perm[s], 3 * sizeof(float));
+    }
+    return st;
+}
+
+/* One smoothing pass, chunk by chunk (progress between chunks). Pass 1:
+ * the neighbour search on the input and the paper's operator (the
+ * projector's bits); later passes: the same neighbours, moved. */
+static tessel_status run_pass(pass_ctx *x, const tsl_grid *g, uint32_t pass, uint32_t passes,
+                              int threads, const tessel_callbacks *callbacks, pass_count *total)
+{
+    size_t n = g->n, c0 = 0, s0 = 0;
+    (void)threads;
+    for (;;) {
+        size_t c1 = c0, s1 = s0;
+        if (pass == 0) {
+            if (c0 >= g->ncell)
+                break;
+            c1 = c0 + 1;
+            while (c1 < g->ncell && g->start[c1] - g->start[c0] < SMOOTH_CHUNK)
+                c1++;
+            s0 = g->start[c0];
+        } else {
+            if (s0 >= n)
+                break;
+            s1 = s0 + SMOOTH_CHUNK < n ? s0 + SMOOTH_CHUNK : n;
+        }
+        tessel_status st =
+            tsl_progress(callbacks, "smooth", ((double)pass + (double)s0 / (double)n) / passes);
+        if (st != TESSEL_OK)
+            return st;
+        size_t c_unfit = 0, c_unconv = 0;
+        uint64_t c_iter = 0;
+        /* Integer reductions only: the sums do not depend on the order. */
+#ifdef _OPENMP
+#pragma omp parallel num_threads(threads) reduction(+ : c_unfit, c_unconv, c_iter)
+#endif
+        {
+            block b; /* per-thread scratch, ~20 KB */
+            fit_buf fb;
+            pass_count pc = {0, 0, 0};
+            b.m = 0;
+            if (pass == 0) {
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 16)
+#endif
+                for (size_t ci = c0; ci < c1; ci++)
+                    search_cell(x, &b, &fb, ci, &pc);
+            } else {
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+                for (size_t s = s0; s < s1; s += 256)
+                    refit_range(x, &fb, s, s + 256 < s1 ? s + 256 : s1, &pc);
+            }
+            c_unfit += pc.unfit;
+            c_unconv += pc.unconverged;
+            c_iter += pc.iterations;
+        }
+        if (x->crowd->st != TESSEL_OK)
+            return x->crowd->st;
+        total->unfit += c_unfit;
+        total->unconverged += c_unconv;
+        total->iterations += c_iter;
+        c0 = c1;
+        s0 = pass == 0 ? s0 : s1;
+    }
+    if (x->surf) {
+#ifdef _OPENMP
+#pragma omp parallel num_threads(threads)
+#endif
+        {
+            fit_buf fb;
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 1)
+#endif
+            for (size_t s = 0; s < n; s += 4096)
+                aggregate_range(x, &fb, s, s + 4096 < n ? s + 4096 : n);
+        }
+    }
+    return TESSEL_OK;
+}
+
+/* The result: the input's other attributes, and the last pass's positions
+ * and normals (xyz, nrm by sorted position) back in the input's order, or,
+ * with grid_order, as they are with the colours and the organized grid in
+ * the grid's order (*pos: each input point's place). The input's
+ * positions and normals are not copied. The last pass's buffers are taken
+ * (set to NULL) when the result uses them as they are. */
+static tessel_status make_result(const tessel_cloud *cloud, const tsl_grid *g, float **xyz,
+                                 float **nrm, bool grid_order, int threads, tessel_cloud *res,
+                                 uint32_t **pos)
+{
+    size_t n = cloud->count;
+    (void)threads;
+    tessel_cloud rest = *cloud;
+    rest.xyz = rest.normals = NULL;
+    tessel_status st = tessel_cloud_copy(res, &rest);
+    if (st != TESSEL_OK)
+        return st;
+    if (grid_order) {
+        res->xyz = *xyz;
+        res->normals = *nrm;
+        *xyz = *nrm = NULL;
+        if (!(*pos = tsl_alloc_array(n, sizeof **pos)))
+            return TESSEL_ERR_NOMEM;
+        for (size_t s = 0; s < n; s++)
+            (*pos)[g->perm[s]] = (uint32_t)s;
+        to_grid_order(res, cloud, g, *pos);
+        return TESSEL_OK;
+    }
+    res->xyz = tsl_alloc_array(n, 3 * sizeof(float));
+    res->normals = tsl_alloc_array(n, 3 * sizeof(float));
+    if (!res->xyz || !res->normals)
+        return TESSEL_ERR_NOMEM;
+    /* perm is a permutation: every thread writes its own slots. */
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(threads) schedule(static)
+#endif
+    for (size_t s = 0; s < n; s++) {
+        size_t i = g->perm[s];
+        memcpy(res->xyz + 3 * i, *xyz + 3 * s, 3 * sizeof(float));
+        memcpy(res->normals + 3 * i, *nrm + 3 * s, 3 * sizeof(float));
+    }
+    return TESSEL_OK;
+}
+
+/* The displacements and the fits' counts; serial, so the floating-point
+ * sums do not depend on the thread count. */
+static void fill_stats(const tessel_cloud *cloud, const tessel_cloud *res, const uint32_t *pos,
+                       const tessel_smooth_params *p, double h, const pass_count *total,
+                       tessel_smooth_stats *stats)
+{
+    size_t n = cloud->count;
+    double sum2 = 0.0, mx = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        double u[3], v[3], e[3];
+        tsl_load(cloud->xyz + 3 * i, u);
+        tsl_load(res->xyz + 3 * (pos ? (size_t)pos[i] : i), v);
+        tsl_sub(u, v, e);
+        double d2 = tsl_dot(e, e);
+        sum2 += d2;
+        mx = d2 > mx ? d2 : mx;
+    }
+    size_t fitted = (size_t)p->passes * n - total->unfit;
+    stats->spacing = h;
+    stats->unfit = total->unfit;
+    stats->unconverged = total->unconverged;
+    stats->mean_iterations = fitted ? (double)total->iterations / (double)fitted : 0.0;
+    stats->rms_displacement = sqrt(sum2 / (double)n);
+    stats->max_displacement = sqrt(mx);
+}
+
+/* The smoothing: the grid and the spacing, the passes, the result. */
 tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
                                const tessel_smooth_params *params,
                                const tessel_callbacks *callbacks, tessel_smooth_stats *stats,
@@ -735,238 +962,59 @@ tessel_status tsl_smooth_timed(const tessel_cloud *cloud, tessel_cloud *out,
     if (st != TESSEL_OK)
         return st;
 
-    const size_t n = cloud->count;
     int threads = tsl_threads(p.threads);
-    (void)threads;
-    /* The grid comes first: when h is not given, its cells find the
-     * nearest neighbours that measure it (tessel_cloud_spacing's value,
-     * without building a kd-tree). Cells a little wider than the distance
-     * to the k-th neighbour, at most the cut-off 3 sigma_w h. */
     tsl_grid g;
     memset(&g, 0, sizeof g);
-    double h = p.spacing, cell = tsl_grid_knn_cell(cloud->xyz, n, p.k);
-    if (h > 0.0)
-        cell = fmin(cell, 3.0 * p.sigma_w * h);
-    st = tsl_grid_build(&g, cloud->xyz, n, cell, threads);
-    if (st == TESSEL_OK && !(h > 0.0)) {
-        double t0 = tsl_seconds();
-        st = tsl_grid_spacing(&g, cloud->xyz, n, threads, &h);
-        if (st == TESSEL_OK && !isfinite(h))
-            st = TESSEL_ERR_TOO_FEW_POINTS; /* no scale to smooth at */
-        if (st == TESSEL_OK && g.c > 3.0 * p.sigma_w * h) {
-            tsl_grid_free(&g);
-            st = tsl_grid_build(&g, cloud->xyz, n, 3.0 * p.sigma_w * h, threads);
-        }
-        *seconds_spacing = tsl_seconds() - t0;
-    }
-    if (st != TESSEL_OK) {
-        tsl_grid_free(&g);
-        return st;
-    }
-    fit_ctl f_first, f_later;
-    tsl_smooth_ctl_setup(&f_first, &p, h, p.sigma_rho);
-    tsl_smooth_ctl_setup(&f_later, &p, h, p.sigma_rho_later);
-    f_later.ridge = 0.0; /* see QUAD_RIDGE */
-
-    float *buf[4] = {NULL, NULL, NULL, NULL}; /* xyz a, xyz b, normals a, b */
-    uint32_t *nb = NULL;
-    uint16_t *cnt = NULL;
-    float *ref0 = NULL;
-    uint32_t *pos = NULL; /* with grid_order: each input point's place */
-    fit_surface *surf = NULL;
+    double h;
+    pass_bufs b;
+    memset(&b, 0, sizeof b);
     crowd cw;
     memset(&cw, 0, sizeof cw);
     tessel_cloud res;
     memset(&res, 0, sizeof res);
-    for (int i = 0; i < 4; i++)
-        if (!(buf[i] = tsl_alloc_array(n, 3 * sizeof(float))))
-            st = TESSEL_ERR_NOMEM;
-    /* The neighbour lists serve later passes and the aggregation only
-     * (one pass, as the noisy pipeline runs, writes 120 bytes per point
-     * less). */
-    bool keep_nb = p.passes > 1 || p.aggregate;
-    if (keep_nb) {
-        nb = tsl_alloc_array(n, (size_t)p.k * sizeof *nb);
-        cnt = tsl_alloc_array(n, sizeof *cnt);
-    }
-    if (p.aggregate)
-        surf = tsl_alloc_array(n, sizeof *surf);
-    if ((keep_nb && (!nb || !cnt)) || (p.aggregate && !surf))
-        st = TESSEL_ERR_NOMEM;
-    if (st != TESSEL_OK)
+    uint32_t *pos = NULL;
+    if ((st = grid_and_spacing(cloud, &p, threads, &g, &h, seconds_spacing)) != TESSEL_OK ||
+        (st = bufs_alloc(cloud, &p, &g, &b)) != TESSEL_OK)
         goto done;
 
+    fit_ctl f_first, f_later;
+    tsl_smooth_ctl_setup(&f_first, &p, h, p.sigma_rho);
+    tsl_smooth_ctl_setup(&f_later, &p, h, p.sigma_rho_later);
+    f_later.ridge = 0.0; /* see QUAD_RIDGE */
     pass_ctx x;
     memset(&x, 0, sizeof x);
     x.g = &g;
-    x.nb = nb;
-    x.cnt = cnt;
-    x.surf = surf;
+    x.nb = b.nb;
+    x.cnt = b.cnt;
+    x.surf = b.surf;
     x.crowd = &cw;
     if (cloud->has_viewpoint) {
         x.has_viewpoint = 1;
         for (int i = 0; i < 3; i++)
             x.viewpoint[i] = cloud->viewpoint[i] - cloud->offset[i];
     }
-    pass_count total = {0, 0, 0};
     cw.xyz = cloud->xyz;
     cw.g = &g;
-    if (cloud->normals) {
-        if (!(ref0 = tsl_alloc_array(n, 3 * sizeof(float)))) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        for (size_t s = 0; s < n; s++)
-            memcpy(ref0 + 3 * s, cloud->normals + 3 * (size_t)g.perm[s], 3 * sizeof(float));
-    }
-
-    /* Pass 1: neighbour search on the input and the paper's operator (the
-     * projector's bits). Later passes: the same neighbours, moved. */
-    for (uint32_t pass = 0; pass < p.passes; pass++) {
+    pass_count total = {0, 0, 0};
+    for (uint32_t pass = 0; pass < p.passes && st == TESSEL_OK; pass++) {
         int a = pass & 1;
         x.f = pass == 0 ? &f_first : &f_later;
-        x.cur_xyz = pass == 0 ? g.sxyz : buf[1 - a];
-        x.ref_nrm = pass == 0 ? ref0 : buf[3 - a];
-        x.out_xyz = buf[a];
-        x.out_nrm = buf[2 + a];
-        size_t c0 = 0, s0 = 0;
-        for (;;) {
-            size_t c1 = c0, s1 = s0;
-            if (pass == 0) {
-                if (c0 >= g.ncell)
-                    break;
-                c1 = c0 + 1;
-                while (c1 < g.ncell && g.start[c1] - g.start[c0] < SMOOTH_CHUNK)
-                    c1++;
-                s0 = g.start[c0];
-            } else {
-                if (s0 >= n)
-                    break;
-                s1 = s0 + SMOOTH_CHUNK < n ? s0 + SMOOTH_CHUNK : n;
-            }
-            st = tsl_progress(callbacks, "smooth",
-                              ((double)pass + (double)s0 / (double)n) / p.passes);
-            if (st != TESSEL_OK)
-                goto done;
-            size_t c_unfit = 0, c_unconv = 0;
-            uint64_t c_iter = 0;
-            /* Integer reductions only: the sums do not depend on the order. */
-#ifdef _OPENMP
-#pragma omp parallel num_threads(threads) reduction(+ : c_unfit, c_unconv, c_iter)
-#endif
-            {
-                block b; /* per-thread scratch, ~20 KB */
-                fit_buf fb;
-                pass_count pc = {0, 0, 0};
-                b.m = 0;
-                if (pass == 0) {
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 16)
-#endif
-                    for (size_t ci = c0; ci < c1; ci++)
-                        search_cell(&x, &b, &fb, ci, &pc);
-                } else {
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1)
-#endif
-                    for (size_t s = s0; s < s1; s += 256)
-                        refit_range(&x, &fb, s, s + 256 < s1 ? s + 256 : s1, &pc);
-                }
-                c_unfit += pc.unfit;
-                c_unconv += pc.unconverged;
-                c_iter += pc.iterations;
-            }
-            if (cw.st != TESSEL_OK) {
-                st = cw.st;
-                goto done;
-            }
-            total.unfit += c_unfit;
-            total.unconverged += c_unconv;
-            total.iterations += c_iter;
-            c0 = c1;
-            s0 = pass == 0 ? s0 : s1;
-        }
-        if (surf) {
-#ifdef _OPENMP
-#pragma omp parallel num_threads(threads)
-#endif
-            {
-                fit_buf fb;
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 1)
-#endif
-                for (size_t s = 0; s < n; s += 4096)
-                    aggregate_range(&x, &fb, s, s + 4096 < n ? s + 4096 : n);
-            }
-        }
+        x.cur_xyz = pass == 0 ? g.sxyz : b.buf[1 - a];
+        x.ref_nrm = pass == 0 ? b.ref0 : b.buf[3 - a];
+        x.out_xyz = b.buf[a];
+        x.out_nrm = b.buf[2 + a];
+        st = run_pass(&x, &g, pass, p.passes, threads, callbacks, &total);
     }
-    st = tsl_progress(callbacks, "smooth", 1.0);
-    if (st != TESSEL_OK)
-        goto done;
-
-    /* Back to the input's order, or the colours and the organized grid to
-     * the grid's. The input's positions and normals are not copied: the
-     * result's are the last pass's, taken as they are or permuted. */
-    {
-        tessel_cloud rest = *cloud;
-        rest.xyz = rest.normals = NULL;
-        st = tessel_cloud_copy(&res, &rest);
-    }
-    if (st != TESSEL_OK)
-        goto done;
+    if (st == TESSEL_OK)
+        st = tsl_progress(callbacks, "smooth", 1.0);
     int last = (int)((p.passes - 1) & 1);
-    if (grid_order) {
-        /* The last pass's buffers are the result as they are. */
-        res.xyz = buf[last];
-        res.normals = buf[2 + last];
-        buf[last] = buf[2 + last] = NULL;
-    } else {
-        res.xyz = tsl_alloc_array(n, 3 * sizeof(float));
-        res.normals = tsl_alloc_array(n, 3 * sizeof(float));
-        if (!res.xyz || !res.normals) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        /* perm is a permutation: every thread writes its own slots. */
-#ifdef _OPENMP
-#pragma omp parallel for num_threads(threads) schedule(static)
-#endif
-        for (size_t s = 0; s < n; s++) {
-            size_t i = g.perm[s];
-            memcpy(res.xyz + 3 * i, buf[last] + 3 * s, 3 * sizeof(float));
-            memcpy(res.normals + 3 * i, buf[2 + last] + 3 * s, 3 * sizeof(float));
-        }
-    }
-    if (grid_order) {
-        if (!(pos = tsl_alloc_array(n, sizeof *pos))) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        for (size_t s = 0; s < n; s++)
-            pos[g.perm[s]] = (uint32_t)s;
-        to_grid_order(&res, cloud, &g, pos);
-    }
-
-    if (stats) {
-        /* Serial, so the floating-point sums do not depend on threads. */
-        double sum2 = 0.0, mx = 0.0;
-        for (size_t i = 0; i < n; i++) {
-            double u[3], v[3], e[3];
-            tsl_load(cloud->xyz + 3 * i, u);
-            tsl_load(res.xyz + 3 * (pos ? (size_t)pos[i] : i), v);
-            tsl_sub(u, v, e);
-            double d2 = tsl_dot(e, e);
-            sum2 += d2;
-            mx = d2 > mx ? d2 : mx;
-        }
-        size_t fitted = (size_t)p.passes * n - total.unfit;
-        stats->spacing = h;
-        stats->unfit = total.unfit;
-        stats->unconverged = total.unconverged;
-        stats->mean_iterations = fitted ? (double)total.iterations / (double)fitted : 0.0;
-        stats->rms_displacement = sqrt(sum2 / (double)n);
-        stats->max_displacement = sqrt(mx);
-    }
+    if (st == TESSEL_OK)
+        st = make_result(cloud, &g, &b.buf[last], &b.buf[2 + last], grid_order, threads, &res,
+                         &pos);
+    if (st != TESSEL_OK)
+        goto done;
+    if (stats)
+        fill_stats(cloud, &res, pos, &p, h, &total, stats);
     *out = res;
     memset(&res, 0, sizeof res);
 
@@ -974,13 +1022,8 @@ done:
     tsl_grid_free(&g);
     tessel_index_destroy(cw.index);
     free(cw.pos_of);
-    for (int i = 0; i < 4; i++)
-        free(buf[i]);
-    free(nb);
-    free(cnt);
-    free(ref0);
+    bufs_free(&b);
     free(pos);
-    free(surf);
     tessel_cloud_free(&res);
     if (st != TESSEL_OK && stats)
         memset(stats, 0, sizeof *stats);
