@@ -10,7 +10,7 @@
  * samples, so in practice all printed digits agree); percentages within
  * 0.01 points (a sample exactly at the threshold could fall either way after
  * rounding; one sample of 20000 is 0.005 points). */
-#include "mesh/mesh.h"
+#include "check/check.h"
 #include "test.h"
 
 #include <stdlib.h>
