@@ -37,10 +37,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 tessel_check_params tessel_check_params_default(void)
 {
     tessel_check_params p;

@@ -9,10 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 /* Stable LSD radix sort of 64-bit keys (16-bit digits); tmp has n slots.
  * Digits that are the same in every key are skipped. */
 static tessel_status radix_sort_u64(uint64_t *keys, uint64_t *tmp, size_t n)

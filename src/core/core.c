@@ -14,10 +14,6 @@
 #include <sys/mman.h>
 #endif
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 const char *tessel_status_str(tessel_status status)
 {
     static const char *const strings[] = {

@@ -13,6 +13,15 @@
 #include <stddef.h>
 #include <stdint.h>
 
+/* OpenMP's runtime, or its one-thread answers in a build without OpenMP
+ * (TESSEL_OPENMP=OFF): the pragmas are then ignored and every loop runs on
+ * one thread. Results do not depend on the thread count either way. */
+#ifdef _OPENMP
+#include <omp.h>
+#else
+static inline int omp_get_thread_num(void) { return 0; }
+#endif
+
 #if defined(__GNUC__)
 #define TSL_PRINTF(a, b) __attribute__((format(printf, a, b)))
 #else

@@ -26,9 +26,7 @@ void tsl_grid_free(tsl_grid *g)
 static void radix_pass(const uint64_t *k0, const uint32_t *i0, uint64_t *k1, uint32_t *i1,
                        size_t n, int sh, size_t (*count)[256], int parts)
 {
-#ifdef _OPENMP
 #pragma omp parallel for num_threads(parts) schedule(static, 1)
-#endif
     for (int t = 0; t < parts; t++) {
         size_t lo = n * (size_t)t / (size_t)parts, hi = n * (size_t)(t + 1) / (size_t)parts;
         memset(count[t], 0, sizeof count[t]);
@@ -42,9 +40,7 @@ static void radix_pass(const uint64_t *k0, const uint32_t *i0, uint64_t *k1, uin
             count[t][b] = sum;
             sum += c;
         }
-#ifdef _OPENMP
 #pragma omp parallel for num_threads(parts) schedule(static, 1)
-#endif
     for (int t = 0; t < parts; t++) {
         size_t lo = n * (size_t)t / (size_t)parts, hi = n * (size_t)(t + 1) / (size_t)parts;
         for (size_t i = lo; i < hi; i++) {
@@ -65,10 +61,8 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
     /* Minima and maxima are exact: any thread count gives the same box. */
     float lx = INFINITY, ly = INFINITY, lz = INFINITY, hx = -INFINITY, hy = -INFINITY,
           hz = -INFINITY;
-#ifdef _OPENMP
 #pragma omp parallel for num_threads(threads) schedule(static) \
     reduction(min : lx, ly, lz) reduction(max : hx, hy, hz)
-#endif
     for (size_t i = 0; i < n; i++) {
         const float *q = xyz + 3 * i;
         lx = q[0] < lx ? q[0] : lx, ly = q[1] < ly ? q[1] : ly, lz = q[2] < lz ? q[2] : lz;
@@ -99,9 +93,7 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!k0 || !k1 || !i0 || !i1 || !g->sxyz)
         goto done;
-#ifdef _OPENMP
 #pragma omp parallel for num_threads(threads) schedule(static)
-#endif
     for (size_t i = 0; i < n; i++) {
         const float *p = xyz + 3 * i;
         k0[i] = tsl_morton(tsl_grid_cell(g, p, 0), tsl_grid_cell(g, p, 1), tsl_grid_cell(g, p, 2));
@@ -132,9 +124,7 @@ tessel_status tsl_grid_build(tsl_grid *g, const float *xyz, size_t n, double cel
             g->start[c++] = (uint32_t)i;
         }
     }
-#ifdef _OPENMP
 #pragma omp parallel for num_threads(parts) schedule(static)
-#endif
     for (size_t i = 0; i < n; i++)
         memcpy(g->sxyz + 3 * i, xyz + 3 * (size_t)i0[i], 3 * sizeof(float));
     g->start[ncell] = (uint32_t)n;

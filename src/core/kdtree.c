@@ -38,9 +38,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 #if defined(__SSE__) || defined(_M_X64)
 #include <xmmintrin.h>
 #endif
@@ -307,15 +304,11 @@ static void build_node(tessel_index *ix, size_t node, size_t begin, size_t n,
     nd->right = (uint32_t)right;
 
     if (n >= KD_TASK_MIN) {
-#ifdef _OPENMP
 #pragma omp task default(shared) firstprivate(left, begin, half) \
     shared(lmn, lmx)
-#endif
         build_node(ix, left, begin, half, lmn, lmx);
         build_node(ix, right, begin + half, n - half, rmn, rmx);
-#ifdef _OPENMP
 #pragma omp taskwait
-#endif
     } else {
         build_node(ix, left, begin, half, lmn, lmx);
         build_node(ix, right, begin + half, n - half, rmn, rmx);
@@ -358,10 +351,8 @@ tessel_status tessel_index_build(tessel_index **index, const float *xyz, size_t 
         float mn[3], mx[3];
         bbox_of(ix->pts, count, mn, mx);
         if (count >= KD_TASK_MIN) {
-#ifdef _OPENMP
 #pragma omp parallel
 #pragma omp single
-#endif
             build_node(ix, 0, 0, count, mn, mx);
         } else {
             build_node(ix, 0, 0, count, mn, mx);
@@ -733,9 +724,7 @@ tessel_status tessel_index_knn_batch(const tessel_index *index, const float *que
     ptrdiff_t nq = (ptrdiff_t)query_count;
     int nthreads = tsl_threads(threads);
     (void)nthreads;
-#ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(nthreads)
-#endif
     for (ptrdiff_t i = 0; i < nq; i++) {
         uint32_t *row = idx + (size_t)i * k;
         float *drow = dist2 ? dist2 + (size_t)i * k : NULL;

@@ -20,10 +20,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 /* Largest k for the density test (the queries keep results on the stack). */
 #define OUTLIER_K_MAX 256
 
@@ -296,9 +292,7 @@ static tessel_status spacing_of(const distinct_set *d, size_t sample_size, int t
     ptrdiff_t ms = (ptrdiff_t)nq;
     int nthreads = tsl_threads(threads);
     (void)nthreads;
-#ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(nthreads)
-#endif
     for (ptrdiff_t q = 0; q < ms; q++) {
         size_t i = order[q];
         uint32_t idx[2];
@@ -337,9 +331,7 @@ static tessel_status outliers_of(const distinct_set *d, uint32_t k, double facto
     ptrdiff_t n = (ptrdiff_t)d->count;
     int nthreads = tsl_threads(threads);
     (void)nthreads;
-#ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(nthreads)
-#endif
     for (ptrdiff_t t = 0; t < n; t++) {
         size_t i = order[t];
         uint32_t idx[OUTLIER_K_MAX + 1];
@@ -495,9 +487,7 @@ static tessel_status grid_first_occurrences(const tsl_grid *g, int threads, uint
             big_len = len;
     }
     (void)threads;
-#ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 1024) num_threads(tsl_threads(threads))
-#endif
     for (long long c = 0; c < ncell; c++) {
         size_t b = g->start[c], e = g->start[c + 1];
         if (e - b > FIRST_SCAN_MAX)
@@ -578,9 +568,7 @@ tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, in
                 first[nq++] = (uint32_t)t;
         }
         long long count = (long long)nq;
-#ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
-#endif
         for (long long k = 0; k < count; k++) {
             uint32_t t = first[k];
             dist[slot[g->perm[t]]] = sqrtf(nearest_distinct_d2(g, g->sxyz + 3 * (size_t)t));

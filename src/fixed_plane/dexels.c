@@ -12,10 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 /* ------------------------------------------------------------------------ */
 /* Dexels: bucketing and one representative per dexel                       */
 /* ------------------------------------------------------------------------ */

@@ -36,10 +36,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 tessel_fixed_plane_params tessel_fixed_plane_params_default(void)
 {
     tessel_fixed_plane_params p;

@@ -11,10 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 /* ------------------------------------------------------------------------ */
 /* The dexel array and the edge test                                         */
 /* ------------------------------------------------------------------------ */

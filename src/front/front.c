@@ -39,7 +39,6 @@
 #include "front/front.h"
 
 #include <float.h>
-#include <omp.h>
 #include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>

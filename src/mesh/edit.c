@@ -12,7 +12,6 @@
  * the mesh stays manifold, oriented and free of self-intersections. */
 #include "mesh/edit.h"
 
-#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 

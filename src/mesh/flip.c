@@ -6,7 +6,6 @@
  * 2003, section 2.5). */
 #include "mesh/edit.h"
 
-#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 

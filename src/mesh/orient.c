@@ -372,6 +372,8 @@ static uint32_t label_sets(const uint32_t *nb, size_t nt, const uint8_t *in, uin
 static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, const float *raw,
                                   bool whole, int threads, uint8_t *mark, size_t *flipped)
 {
+    if (nt >= UINT32_MAX) /* triangle ids are uint32_t, NONE the largest */
+        return TESSEL_ERR_LIMIT;
     uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb);
     uint32_t *label = tsl_alloc_array(nt, sizeof *label);
     uint32_t *comp = tsl_alloc_array(nt, sizeof *comp);

@@ -4,7 +4,6 @@
  * the edges and the new vertices' positions. */
 #include "mesh/edit.h"
 
-#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 

@@ -411,9 +411,7 @@ tessel_status tessel_normals_estimate(tessel_cloud *cloud, const tessel_normals_
     size_t slice = (n + NORMALS_SLICES - 1) / NORMALS_SLICES;
     for (size_t s0 = 0; s0 < n && st == TESSEL_OK; s0 += slice) {
         ptrdiff_t end = (ptrdiff_t)(n - s0 < slice ? n : s0 + slice);
-#ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 512) num_threads(nthreads)
-#endif
         for (ptrdiff_t t = (ptrdiff_t)s0; t < end; t++) {
             size_t i = order[t];
             uint32_t idx[NORMALS_K_MAX];

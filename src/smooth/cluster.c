@@ -22,10 +22,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 /* Nodes smaller than this are not worth a task of their own. */
 #define CLUSTER_TASK_MIN 4096u
 
@@ -161,9 +157,7 @@ static void build(bsp *b, size_t lo, size_t hi)
             slo = mid, shi = hi, llo = lo, lhi = mid;
         }
         if (shi - slo >= CLUSTER_TASK_MIN) {
-#ifdef _OPENMP
 #pragma omp task firstprivate(b, slo, shi)
-#endif
             build(b, slo, shi);
         } else {
             build(b, slo, shi);
@@ -241,10 +235,8 @@ tessel_status tessel_cluster(const tessel_cloud *cloud, const tessel_cluster_par
     }
 
     bsp *bp = &b;
-#ifdef _OPENMP
 #pragma omp parallel num_threads(tsl_threads(p.threads))
 #pragma omp single
-#endif
     build(bp, 0, n);
     free(b.scratch);
     b.scratch = NULL;

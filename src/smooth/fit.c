@@ -11,10 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 struct tessel_projector {
     const tessel_index *index; /* over xyz */
     tessel_index *own;         /* index, when built here (else borrowed) */

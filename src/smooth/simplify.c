@@ -11,10 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 /* Clusters per progress report / cancellation check. */
 #define SIMPLIFY_CHUNK ((size_t)1 << 15)
 
@@ -102,9 +98,7 @@ static tessel_status representatives(const tessel_cloud *cloud, const tessel_clu
         if (st != TESSEL_OK)
             goto done;
         size_t hi = lo + SIMPLIFY_CHUNK < nc ? lo + SIMPLIFY_CHUNK : nc;
-#ifdef _OPENMP
 #pragma omp parallel for num_threads(threads) schedule(dynamic, 64)
-#endif
         for (size_t c = lo; c < hi; c++) {
             size_t a = clusters->offsets[c], b = clusters->offsets[c + 1];
             double s[3] = {0, 0, 0}, col[3] = {0, 0, 0};

@@ -41,10 +41,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
 tessel_smooth_params tessel_smooth_params_default(void)
 {
     tessel_smooth_params p;
@@ -475,9 +471,7 @@ static tessel_status crowd_build(crowd *c)
 static bool crowd_ready(crowd *c)
 {
     bool ok;
-#ifdef _OPENMP
 #pragma omp critical(tsl_smooth_crowd)
-#endif
     {
         if (!c->pos_of && c->st == TESSEL_OK)
             c->st = crowd_build(c);
@@ -824,24 +818,18 @@ static tessel_status run_pass(pass_ctx *x, const tsl_grid *g, uint32_t pass, uin
         size_t c_unfit = 0, c_unconv = 0;
         uint64_t c_iter = 0;
         /* Integer reductions only: the sums do not depend on the order. */
-#ifdef _OPENMP
 #pragma omp parallel num_threads(threads) reduction(+ : c_unfit, c_unconv, c_iter)
-#endif
         {
             block b; /* per-thread scratch, ~20 KB */
             fit_buf fb;
             pass_count pc = {0, 0, 0};
             b.m = 0;
             if (pass == 0) {
-#ifdef _OPENMP
 #pragma omp for schedule(dynamic, 16)
-#endif
                 for (size_t ci = c0; ci < c1; ci++)
                     search_cell(x, &b, &fb, ci, &pc);
             } else {
-#ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
-#endif
                 for (size_t s = s0; s < s1; s += 256)
                     refit_range(x, &fb, s, s + 256 < s1 ? s + 256 : s1, &pc);
             }
@@ -858,14 +846,10 @@ static tessel_status run_pass(pass_ctx *x, const tsl_grid *g, uint32_t pass, uin
         s0 = pass == 0 ? s0 : s1;
     }
     if (x->surf) {
-#ifdef _OPENMP
 #pragma omp parallel num_threads(threads)
-#endif
         {
             fit_buf fb;
-#ifdef _OPENMP
 #pragma omp for schedule(dynamic, 1)
-#endif
             for (size_t s = 0; s < n; s += 4096)
                 aggregate_range(x, &fb, s, s + 4096 < n ? s + 4096 : n);
         }
@@ -906,9 +890,7 @@ static tessel_status make_result(const tessel_cloud *cloud, const tsl_grid *g, f
     if (!res->xyz || !res->normals)
         return TESSEL_ERR_NOMEM;
     /* perm is a permutation: every thread writes its own slots. */
-#ifdef _OPENMP
 #pragma omp parallel for num_threads(threads) schedule(static)
-#endif
     for (size_t s = 0; s < n; s++) {
         size_t i = g->perm[s];
         memcpy(res->xyz + 3 * i, *xyz + 3 * s, 3 * sizeof(float));
