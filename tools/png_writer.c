@@ -3,7 +3,7 @@
  * set before it. */
 #include "png_writer.h"
 
-#include "io/io.h"
+#include "io/outfile.h"
 
 #include <png.h>
 #include <setjmp.h>

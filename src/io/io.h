@@ -13,6 +13,7 @@
 #define TESSEL_IO_INTERNAL_H
 
 #include "core/core.h"
+#include "io/outfile.h"
 
 #include <stdio.h>
 
@@ -143,20 +144,6 @@ bool tsl_scan_u64(const char **p, const char *end, uint64_t *out);
 bool tsl_scan_i64(const char **p, const char *end, int64_t *out);
 
 /* ---- writing ---- */
-
-/* A destination file written under a temporary name in the same folder and
- * renamed over `path` by commit. abort removes the temporary. */
-typedef struct tsl_outfile {
-    FILE *fp;
-    char *path;
-    char *tmp_path;
-} tsl_outfile;
-
-tessel_status tsl_outfile_open(tsl_outfile *out, const char *path, tessel_diag *diag);
-/* Flushes, checks for write errors, closes and renames. On failure the
- * temporary is removed and diag names the path. */
-tessel_status tsl_outfile_commit(tsl_outfile *out, tessel_diag *diag);
-void tsl_outfile_abort(tsl_outfile *out);
 
 /* What a writer writes: vertex arrays (world = offset + xyz). */
 typedef struct tsl_vertices {
