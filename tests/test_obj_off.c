@@ -1,7 +1,8 @@
 /* OBJ and OFF readers and writers, and the binary STL writer: face forms,
  * relative indices, polygons as fans, normals and colours, format
  * variants, errors with their line, exact round trips, every prefix of a
- * valid file, and the STL byte layout checked field by field. */
+ * valid file, CRLF line ends in every text format, and the STL byte layout
+ * checked field by field. */
 #include "format_helpers.h"
 
 #include <math.h>
@@ -402,6 +403,53 @@ static void test_public_api(void)
     rmdir(dir);
 }
 
+/* CRLF line ends and a CR between tokens read as blanks in every text
+ * format (one definition of a blank in src/io/io.h): the same meshes and
+ * clouds as with LF. */
+static void test_crlf(void)
+{
+    static const struct {
+        tsl_parse_fn fn;
+        const char *text;
+    } cases[] = {
+        {tsl_parse_obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4\r3\n"},
+        {tsl_parse_off, "OFF\n4 2 0\n0 0 0\n1 0\r0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n"},
+        {tsl_parse_xyz, "0 0 0\n1 0\r0\n0 1 0\n1 1 0\n"},
+        {tsl_parse_pcd, "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                        "WIDTH 4\nHEIGHT 1\nPOINTS 4\nDATA ascii\n0 0 0\n1 0\r0\n0 1 0\n"
+                        "1 1 0\n"},
+    };
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; c++) {
+        const char *lf = cases[c].text;
+        char crlf[512];
+        size_t n = 0;
+        for (const char *q = lf; *q && n + 2 < sizeof crlf; q++) {
+            if (*q == '\n')
+                crlf[n++] = '\r';
+            crlf[n++] = *q;
+        }
+        crlf[n] = 0;
+        tessel_mesh a, b;
+        tessel_diag d;
+        tessel_status sa = parse_mesh(cases[c].fn, lf, &a, &d);
+        CHECK_MSG(sa == TESSEL_OK, "case %zu LF: %s", c, d.message);
+        tessel_status sb = parse_mesh(cases[c].fn, crlf, &b, &d);
+        CHECK_MSG(sb == TESSEL_OK, "case %zu CRLF: %s", c, d.message);
+        if (sa == TESSEL_OK && sb == TESSEL_OK) {
+            CHECK(a.vertex_count == 4 && b.vertex_count == 4);
+            CHECK(a.triangle_count == b.triangle_count);
+            CHECK(fmt_same_floats(a.xyz, b.xyz, 3 * a.vertex_count));
+            CHECK(a.triangle_count == 0 ||
+                  !memcmp(a.triangles, b.triangles, 3 * a.triangle_count * sizeof *a.triangles));
+            CHECK(a.xyz[3 * 1] == 1 && a.xyz[3 * 1 + 2] == 0);
+        }
+        if (sa == TESSEL_OK)
+            tessel_mesh_free(&a);
+        if (sb == TESSEL_OK)
+            tessel_mesh_free(&b);
+    }
+}
+
 int main(void)
 {
     test_obj_read();
@@ -409,5 +457,6 @@ int main(void)
     test_round_trips();
     test_stl();
     test_public_api();
+    test_crlf();
     return TEST_SUMMARY();
 }

@@ -135,6 +135,16 @@ tessel_status tsl_read_file(const char *path, uint8_t **data, size_t *size,
 
 /* ---- text scanning helpers for the text formats ---- */
 
+/* Blanks between the tokens of a line: space, tab, and the CR of a CRLF
+ * line end. */
+static inline bool tsl_is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
+static inline const char *tsl_skip_blanks(const char *p, const char *end)
+{
+    while (p < end && tsl_is_blank(*p))
+        p++;
+    return p;
+}
+
 /* Parses a double at *p (strtod semantics, no locale surprises: '.' only),
  * stopping at end. Advances *p. Returns false when no number is there. */
 bool tsl_scan_double(const char **p, const char *end, double *out);

@@ -38,23 +38,14 @@ static bool obj_next_line(obj_text *t, const char **s, const char **e)
     return true;
 }
 
-static bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
-
-static const char *skip_blanks(const char *p, const char *e)
-{
-    while (p < e && is_blank(*p))
-        p++;
-    return p;
-}
-
 /* The statement keyword of a line: "v", "vn", "f", ...; 0 for "none". */
 enum { KW_OTHER, KW_V, KW_VN, KW_F };
 
 static int keyword(const char **s, const char *e)
 {
-    const char *p = skip_blanks(*s, e);
+    const char *p = tsl_skip_blanks(*s, e);
     const char *k = p;
-    while (p < e && !is_blank(*p))
+    while (p < e && !tsl_is_blank(*p))
         p++;
     size_t len = (size_t)(p - k);
     *s = p;
@@ -71,10 +62,10 @@ static size_t count_tokens(const char *p, const char *e)
 {
     size_t n = 0;
     for (;;) {
-        p = skip_blanks(p, e);
+        p = tsl_skip_blanks(p, e);
         if (p == e)
             return n;
-        while (p < e && !is_blank(*p))
+        while (p < e && !tsl_is_blank(*p))
             p++;
         n++;
     }
@@ -87,12 +78,12 @@ static size_t read_numbers(const char *p, const char *e, double *v, size_t max,
 {
     size_t n = 0;
     for (;;) {
-        p = skip_blanks(p, e);
+        p = tsl_skip_blanks(p, e);
         if (p == e)
             return n;
         const char *tok = p;
         double x;
-        if (!tsl_scan_double(&p, e, &x) || (p < e && !is_blank(*p))) {
+        if (!tsl_scan_double(&p, e, &x) || (p < e && !tsl_is_blank(*p))) {
             *bad = tok;
             return SIZE_MAX;
         }
@@ -126,7 +117,7 @@ static void obj_count(const char *data, size_t size, obj_counts *c)
             for (const char *q = s; q < e && !c->face_normals; q++) {
                 if (*q == '/')
                     c->face_normals = ++slashes == 2;
-                else if (is_blank(*q))
+                else if (tsl_is_blank(*q))
                     slashes = 0;
             }
         }
@@ -179,7 +170,7 @@ static tessel_status obj_face(obj_state *o, const char *p, const char *e, uint64
 {
     size_t n = 0;
     for (;;) {
-        p = skip_blanks(p, e);
+        p = tsl_skip_blanks(p, e);
         if (p == e)
             break;
         const char *tok = p;
@@ -194,12 +185,12 @@ static tessel_status obj_face(obj_state *o, const char *p, const char *e, uint64
                 if (part == 1 && p < e && *p == '/')
                     continue;  /* empty texture slot: v//vn */
             }
-            ok = p < e && !is_blank(*p) && tsl_scan_i64(&p, e, &raw[part]);
+            ok = p < e && !tsl_is_blank(*p) && tsl_scan_i64(&p, e, &raw[part]);
             given[part] = ok;
         }
-        if (!ok || !given[0] || (p < e && !is_blank(*p))) {
+        if (!ok || !given[0] || (p < e && !tsl_is_blank(*p))) {
             const char *te = tok;
-            while (te < e && !is_blank(*te))
+            while (te < e && !tsl_is_blank(*te))
                 te++;
             tsl_diag_set(o->diag, o->name, line, 0, 0,
                          "bad face vertex '%.*s' (expected v, v/vt, v//vn or v/vt/vn)",
@@ -287,7 +278,7 @@ static tessel_status obj_parse(obj_state *o, const char *data, size_t size, int 
         size_t n = read_numbers(s, e, v, 6, &bad);
         if (n == SIZE_MAX) {
             const char *te = bad;
-            while (te < e && !is_blank(*te))
+            while (te < e && !tsl_is_blank(*te))
                 te++;
             tsl_diag_set(o->diag, o->name, t.line, 0, 0, "bad number '%.*s'",
                          (int)(te - bad > 40 ? 40 : te - bad), bad);

@@ -18,15 +18,6 @@ typedef struct off_text {
     uint64_t line;
 } off_text;
 
-static bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
-
-static const char *skip_blanks(const char *p, const char *e)
-{
-    while (p < e && is_blank(*p))
-        p++;
-    return p;
-}
-
 /* Next non-empty line (comments cut) as [*s, *e); false at the end. */
 static bool off_next_line(off_text *t, const char **s, const char **e)
 {
@@ -34,11 +25,11 @@ static bool off_next_line(off_text *t, const char **s, const char **e)
         const char *nl = memchr(t->p, '\n', (size_t)(t->end - t->p));
         const char *stop = nl ? nl : t->end;
         const char *hash = memchr(t->p, '#', (size_t)(stop - t->p));
-        const char *ls = skip_blanks(t->p, hash ? hash : stop);
+        const char *ls = tsl_skip_blanks(t->p, hash ? hash : stop);
         const char *le = hash ? hash : stop;
         t->p = nl ? nl + 1 : t->end;
         t->line++;
-        while (le > ls && is_blank(le[-1]))
+        while (le > ls && tsl_is_blank(le[-1]))
             le--;
         if (ls < le) {
             *s = ls;
@@ -56,12 +47,12 @@ static size_t off_numbers(const char *p, const char *e, double *v, bool *dots, s
 {
     size_t n = 0;
     for (;;) {
-        p = skip_blanks(p, e);
+        p = tsl_skip_blanks(p, e);
         if (p == e)
             return n;
         const char *tok = p;
         double x;
-        if (!tsl_scan_double(&p, e, &x) || (p < e && !is_blank(*p)))
+        if (!tsl_scan_double(&p, e, &x) || (p < e && !tsl_is_blank(*p)))
             return SIZE_MAX;
         if (n < max) {
             v[n] = x;
@@ -101,9 +92,9 @@ tessel_status tsl_parse_off(const uint8_t *data, size_t size, const char *name,
             has_n = true;
         k++;
     }
-    if ((size_t)(e - k) < 3 || memcmp(k, "OFF", 3) != 0 || (k + 3 < e && !is_blank(k[3]))) {
+    if ((size_t)(e - k) < 3 || memcmp(k, "OFF", 3) != 0 || (k + 3 < e && !tsl_is_blank(k[3]))) {
         const char *te = s;
-        while (te < e && !is_blank(*te))
+        while (te < e && !tsl_is_blank(*te))
             te++;
         bool variant = (size_t)(te - s) >= 3 && memcmp(te - 3, "OFF", 3) == 0;
         tsl_diag_set(diag, name, t.line, 0, 0,
@@ -114,7 +105,7 @@ tessel_status tsl_parse_off(const uint8_t *data, size_t size, const char *name,
         return variant ? TESSEL_ERR_UNSUPPORTED : TESSEL_ERR_PARSE;
     }
     /* Counts: on the keyword line or the next one. */
-    const char *cs = skip_blanks(k + 3, e), *ce = e;
+    const char *cs = tsl_skip_blanks(k + 3, e), *ce = e;
     if (cs == ce && !off_next_line(&t, &cs, &ce)) {
         tsl_diag_set(diag, name, t.line, 0, 0, "OFF file ends before its counts");
         return TESSEL_ERR_PARSE;
@@ -122,9 +113,9 @@ tessel_status tsl_parse_off(const uint8_t *data, size_t size, const char *name,
     uint64_t nv = 0, nf = 0, ne = 0;
     const char *p = cs;
     bool ok = tsl_scan_u64(&p, ce, &nv) && tsl_scan_u64(&p, ce, &nf);
-    if (ok && skip_blanks(p, ce) != ce)
+    if (ok && tsl_skip_blanks(p, ce) != ce)
         ok = tsl_scan_u64(&p, ce, &ne);
-    if (!ok || skip_blanks(p, ce) != ce) {
+    if (!ok || tsl_skip_blanks(p, ce) != ce) {
         tsl_diag_set(diag, name, t.line, 0, 0,
                      "expected the counts 'vertices faces edges' as integers");
         return TESSEL_ERR_PARSE;
@@ -204,7 +195,7 @@ tessel_status tsl_parse_off(const uint8_t *data, size_t size, const char *name,
         }
         p = s;
         uint64_t n;
-        if (!tsl_scan_u64(&p, e, &n) || (p < e && !is_blank(*p))) {
+        if (!tsl_scan_u64(&p, e, &n) || (p < e && !tsl_is_blank(*p))) {
             tsl_diag_set(diag, name, t.line, 0, 0,
                          "expected a face: a vertex count and the vertex indices");
             st = TESSEL_ERR_PARSE;
@@ -212,7 +203,7 @@ tessel_status tsl_parse_off(const uint8_t *data, size_t size, const char *name,
         }
         for (uint64_t j = 0; j < n; j++) {
             uint64_t idx;
-            const char *q = skip_blanks(p, e);
+            const char *q = tsl_skip_blanks(p, e);
             if (q == e) {
                 tsl_diag_set(diag, name, t.line, 0, 0,
                              "face announces %llu vertices, the line has %llu",
@@ -220,7 +211,7 @@ tessel_status tsl_parse_off(const uint8_t *data, size_t size, const char *name,
                 st = TESSEL_ERR_PARSE;
                 break;
             }
-            if (!tsl_scan_u64(&q, e, &idx) || (q < e && !is_blank(*q))) {
+            if (!tsl_scan_u64(&q, e, &idx) || (q < e && !tsl_is_blank(*q))) {
                 tsl_diag_set(diag, name, t.line, 0, 0, "bad vertex index in face %llu",
                              (unsigned long long)f);
                 st = TESSEL_ERR_PARSE;

@@ -53,23 +53,14 @@ typedef struct pcd_line {
     const char *p, *end;
 } pcd_line;
 
-static bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r'; }
-
-static const char *skip_space(const char *p, const char *end)
-{
-    while (p < end && is_space(*p))
-        p++;
-    return p;
-}
-
 /* Next whitespace-delimited token of the line; false at its end. */
 static bool next_token(pcd_line *l, const char **tok, size_t *len)
 {
-    const char *p = skip_space(l->p, l->end);
+    const char *p = tsl_skip_blanks(l->p, l->end);
     if (p == l->end)
         return false;
     const char *q = p;
-    while (q < l->end && !is_space(*q))
+    while (q < l->end && !tsl_is_blank(*q))
         q++;
     *tok = p;
     *len = (size_t)(q - p);

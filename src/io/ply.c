@@ -727,7 +727,7 @@ static tessel_status binary_element(ply_reader *r, tsl_builder *b, const ply_ele
 
 static bool is_space(uint8_t c)
 {
-    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
+    return tsl_is_blank((char)c) || c == '\n' || c == '\v' || c == '\f';
 }
 
 /* Reads the next value as a double; false with a diagnostic at the end of

@@ -45,13 +45,6 @@ static size_t match_word(const char *s, const char *end, const char *word)
     return n;
 }
 
-static const char *skip_blanks(const char *s, const char *end)
-{
-    while (s < end && (*s == ' ' || *s == '\t'))
-        s++;
-    return s;
-}
-
 /* Slow, exact path: the token's digits without leading zeros, then the
  * adjusted exponent, handed to strtod. */
 static double slow_parse(const char *s, const char *end, bool neg, long exp10)
@@ -99,7 +92,7 @@ static double slow_parse(const char *s, const char *end, bool neg, long exp10)
 
 bool tsl_scan_double(const char **p, const char *end, double *out)
 {
-    const char *s = skip_blanks(*p, end);
+    const char *s = tsl_skip_blanks(*p, end);
     bool neg = false;
     if (s < end && (*s == '+' || *s == '-')) {
         neg = (*s == '-');
@@ -207,7 +200,7 @@ bool tsl_scan_double(const char **p, const char *end, double *out)
 
 bool tsl_scan_u64(const char **p, const char *end, uint64_t *out)
 {
-    const char *s = skip_blanks(*p, end);
+    const char *s = tsl_skip_blanks(*p, end);
     if (s < end && *s == '+')
         s++;
     if (s >= end || !is_digit(*s))
@@ -227,7 +220,7 @@ bool tsl_scan_u64(const char **p, const char *end, uint64_t *out)
 
 bool tsl_scan_i64(const char **p, const char *end, int64_t *out)
 {
-    const char *s = skip_blanks(*p, end);
+    const char *s = tsl_skip_blanks(*p, end);
     bool neg = false;
     if (s < end && (*s == '+' || *s == '-')) {
         neg = (*s == '-');

@@ -41,26 +41,21 @@ typedef struct xyz_layout {
     uint64_t defined_at;  /* line that fixed the layout */
 } xyz_layout;
 
-static bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r'; }
 static bool is_sep(char c) { return c == ',' || c == ';'; }
 
 /* Skips blanks, then at most one ',' or ';' and the blanks after it. */
 static const char *skip_separator(const char *p, const char *end)
 {
-    while (p < end && is_blank(*p))
-        p++;
-    if (p < end && is_sep(*p)) {
-        p++;
-        while (p < end && is_blank(*p))
-            p++;
-    }
+    p = tsl_skip_blanks(p, end);
+    if (p < end && is_sep(*p))
+        p = tsl_skip_blanks(p + 1, end);
     return p;
 }
 
 /* End of the token starting at p. */
 static const char *token_end(const char *p, const char *end)
 {
-    while (p < end && !is_blank(*p) && !is_sep(*p))
+    while (p < end && !tsl_is_blank(*p) && !is_sep(*p))
         p++;
     return p;
 }
@@ -70,7 +65,7 @@ static const char *token_end(const char *p, const char *end)
 static bool scan_value(const char **p, const char *end, double *v)
 {
     const char *q = *p;
-    if (!tsl_scan_double(&q, end, v) || (q < end && !is_blank(*q) && !is_sep(*q)))
+    if (!tsl_scan_double(&q, end, v) || (q < end && !tsl_is_blank(*q) && !is_sep(*q)))
         return false;
     *p = q;
     return true;
@@ -221,7 +216,7 @@ static bool next_line(line_iter *it, const char **s, const char **e)
 static int classify(const char **s, const char *e, const char **body)
 {
     const char *p = *s;
-    while (p < e && is_blank(*p))
+    while (p < e && tsl_is_blank(*p))
         p++;
     *s = p;
     if (p == e)
@@ -243,7 +238,7 @@ static bool single_integer(const char *s, const char *e, uint64_t *n)
     const char *p = s;
     if (!tsl_scan_u64(&p, e, n))
         return false;
-    while (p < e && is_blank(*p))
+    while (p < e && tsl_is_blank(*p))
         p++;
     return p == e;
 }
