@@ -860,10 +860,11 @@ static bool file_has(const char *path, const char *text)
 
 static void test_cli(void)
 {
-    if (run_cli("--help") != 0) {
-        printf("tessel reconstruct is not in the CLI's command table: CLI test skipped\n");
+    int help = run_cli("--help");
+    CHECK_MSG(help == 0, "tessel reconstruct --help exited with %d (is the CLI at %s?)", help,
+              TESSEL_CLI);
+    if (help != 0)
         return;
-    }
     char dir[] = "/tmp/tessel_gp_XXXXXX";
     if (!mkdtemp(dir)) {
         CHECK(0);
