@@ -1,4 +1,4 @@
-/* Greedy projection reconstruction benchmark (src/greedy.c, Gopi & Krishnan
+/* Greedy projection reconstruction benchmark (src/greedy/, Gopi & Krishnan
  * 2002). Synthetic input: n points of the jittered Fibonacci lattice on the
  * unit sphere (tests/surfaces.h), an even sampling of a closed surface,
  * from 10^4 to 10^7 points; or the given files. Each run is a child
@@ -6,7 +6,7 @@
  * writer and a PLY file (--write DIR; the default), as `tessel
  * reconstruct` does, or into a counting sink (--count). By default the
  * triangles are held for the orientation check and the diagonal flips
- * (src/greedy_held.c), as `tessel reconstruct` does; --stream sends them on
+ * (src/greedy/held.c), as `tessel reconstruct` does; --stream sends them on
  * as they are final (`tessel reconstruct --stream`). The front runs on
  * one core; the orientation check and the flips use OpenMP's threads:
  * OMP_NUM_THREADS=1 keeps the whole run on one core.

@@ -8,7 +8,7 @@
  * triangle is the nearest by exact point-triangle distance among the 32
  * triangles whose centroids are nearest (exact for meshes whose triangles
  * are not much larger than their neighbours, as with the reference meshes
- * in /work/shared/data). */
+ * of the evaluation set, bench/README.md). */
 #include "tessel.h"
 
 #include "bench_data.h"

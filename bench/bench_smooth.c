@@ -1,5 +1,5 @@
-/* Benchmark of the noisy-cloud stages (src/smooth.c, src/cluster.c,
- * src/simplify.c):
+/* Benchmark of the noisy-cloud stages (src/smooth/, src/smooth/cluster.c,
+ * src/smooth/simplify.c):
  *   1. throughput: smoothing (medians of three runs; also with the spacing
  *      estimated inside, as a default caller runs it), clustering and
  *      representatives on a fixed-seed noisy sphere (default 1,000,000

@@ -372,7 +372,7 @@ TESSEL_API tessel_normals_params tessel_normals_params_default(void);
 TESSEL_API tessel_status tessel_normals_estimate(tessel_cloud *cloud,
                                                  const tessel_normals_params *params,
                                                  const tessel_callbacks *callbacks);
-/* Orientation details (src/normals.c): each component of the k-NN graph is
+/* Orientation details (src/normals/): each component of the k-NN graph is
  * seeded at its highest point with n.z > 0; a cloud with a viewpoint (one
  * scan, has_viewpoint) instead has every normal turned towards the
  * viewpoint. On failure or cancellation cloud->normals is left as it was.
@@ -380,7 +380,7 @@ TESSEL_API tessel_status tessel_normals_estimate(tessel_cloud *cloud,
  * TESSEL_ERR_TOO_FEW_POINTS. Progress stage: "normals". */
 
 /* ------------------------------------------------------------------------ */
-/* Mesh check (src/check.c)                                                  */
+/* Mesh check (src/check/)                                                  */
 /* ------------------------------------------------------------------------ */
 
 typedef struct tessel_check_params {
@@ -484,7 +484,7 @@ TESSEL_API tessel_status tessel_mesh_check(const tessel_mesh *mesh,
 TESSEL_API int tessel_mesh_report_valid(const tessel_mesh_report *report);
 
 /* ------------------------------------------------------------------------ */
-/* Rendering (src/render.c)                                                  */
+/* Rendering (src/render/)                                                  */
 /* ------------------------------------------------------------------------ */
 
 /* A software rasterizer for looking at results: orthographic views fitted
@@ -548,7 +548,7 @@ TESSEL_API tessel_status tessel_render(const tessel_mesh *mesh,
                                        uint8_t *rgb);
 
 /* ------------------------------------------------------------------------ */
-/* Greedy projection reconstruction (src/greedy.c)                           */
+/* Greedy projection reconstruction (src/greedy/)                           */
 /* ------------------------------------------------------------------------ */
 
 /* Gopi & Krishnan 2002, "A fast and efficient projection-based approach for
@@ -690,8 +690,9 @@ typedef struct tessel_recon_summary {
  * consistently oriented, without self-intersecting, duplicate or degenerate
  * triangles, and the same for the same input and params. params and summary
  * may be NULL; the cloud must have fewer than 2^32 - 1 points and finite
- * coordinates. Single-threaded but for the orientation check's rays
- * (OpenMP). */
+ * coordinates. The front runs on one thread; the orientation check and the
+ * diagonal flips after it run in parallel (OpenMP), with the same result
+ * for any thread count. */
 TESSEL_API tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
                                                    const tessel_greedy_params *params,
                                                    const tessel_callbacks *callbacks,
@@ -709,7 +710,7 @@ TESSEL_API tessel_status tessel_reconstruct_greedy_mesh(const tessel_cloud *clou
 
 /* ------------------------------------------------------------------------ */
 /* Fixed-plane reconstruction for height fields, range scans and organized   */
-/* grids (src/fixed_plane.c)                                                 */
+/* grids (src/fixed_plane/)                                                 */
 /* ------------------------------------------------------------------------ */
 
 /* Gopi & Krishnan 2002, "A fast and efficient projection-based approach for
@@ -852,8 +853,8 @@ TESSEL_API tessel_status tessel_reconstruct_fixed_plane_mesh(
     const tessel_callbacks *callbacks, tessel_mesh *mesh, tessel_fixed_plane_stats *stats);
 
 /* ------------------------------------------------------------------------ */
-/* Noisy clouds: robust smoothing, clustering, reduction (src/smooth.c,      */
-/* src/cluster.c, src/simplify.c)                                            */
+/* Noisy clouds: robust smoothing, clustering, reduction (src/smooth/,      */
+/* src/smooth/cluster.c, src/smooth/simplify.c)                                            */
 /* ------------------------------------------------------------------------ */
 
 /* Mederos, Velho & de Figueiredo 2003, "Smooth surface reconstruction from
@@ -1092,8 +1093,8 @@ TESSEL_API tessel_status tessel_simplify(const tessel_cloud *cloud, tessel_cloud
                                          tessel_simplify_stats *stats);
 
 /* ------------------------------------------------------------------------ */
-/* Noisy clouds: advancing front and refinement (src/advancing_front.c,      */
-/* src/refine.c)                                                             */
+/* Noisy clouds: advancing front and refinement (src/front/,      */
+/* src/refine/)                                                             */
 /* ------------------------------------------------------------------------ */
 
 /* Steps 4 and 5 of Mederos, Velho & de Figueiredo 2003 (sections 2.4, 2.5)
@@ -1163,7 +1164,7 @@ typedef struct tessel_front_params {
                                 whose fronts run in parallel; a front over
                                 all points then closes the seams, starting
                                 from the tiles' triangles less those within
-                                2 mean spacings of a cut. The result depends
+                                half a mean spacing of a cut. The result depends
                                 on this, not on the thread count. Default
                                 65536 (0: one front; else >= 256) */
     int threads;             /* for the neighbour search and the tiles; 0 =
@@ -1264,7 +1265,7 @@ TESSEL_API tessel_status tessel_refine(tessel_mesh *mesh, const tessel_cloud *cl
                                        const tessel_callbacks *callbacks,
                                        tessel_refine_stats *stats);
 
-/* The whole pipeline (src/smooth_pipeline.c): smooth -> cluster -> reduce
+/* The whole pipeline (src/pipeline/): smooth -> cluster -> reduce
  * -> triangulate -> refine, for noisy clouds without normals. The spacing h
  * is estimated once (unless a stage's params give one) and used by every
  * stage. */
@@ -1302,7 +1303,7 @@ typedef struct tessel_smooth_recon_stats {
                                         mesh turned outward: regions the
                                         front carried inside out across a
                                         place where two sheets touch
-                                        (src/orient.c); only for clouds
+                                        (src/mesh/orient.c); only for clouds
                                         without normals or viewpoint */
     /* Wall-clock seconds per stage (as the paper's Table 1) and in all. */
     double seconds_spacing, seconds_smooth, seconds_simplify, seconds_front,

@@ -1,4 +1,4 @@
-/* Advancing-front triangulation (src/advancing_front.c) on analytic
+/* Advancing-front triangulation (src/front/) on analytic
  * samples: a sphere and a torus must come out closed, manifold, outward and
  * with the right Euler characteristic; a disc with exactly one border loop;
  * two close parallel sheets as two components; a sphere with noise of a

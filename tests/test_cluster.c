@@ -1,4 +1,4 @@
-/* BSP clustering (src/cluster.c) and representatives (src/simplify.c):
+/* BSP clustering (src/smooth/cluster.c) and representatives (src/smooth/simplify.c):
  * clusters partition the cloud, obey the flatness and diameter rules, nest
  * when the rules get stricter, do not depend on the thread count;
  * representatives lie on the surface; isolated outliers get none. */

@@ -1,4 +1,4 @@
-/* Fixed-plane reconstruction (src/fixed_plane.c): height fields with known
+/* Fixed-plane reconstruction (src/fixed_plane/): height fields with known
  * heights (a plane, a paraboloid, a step that must stay open), a room
  * scanned from inside (range mode, unorganized), organized grids (a depth
  * camera, a full 360 degree scan), georeferenced offsets, determinism and

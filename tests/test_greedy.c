@@ -1,4 +1,4 @@
-/* Greedy projection reconstruction (src/greedy.c) on analytic surfaces:
+/* Greedy projection reconstruction (src/greedy/) on analytic surfaces:
  * validity (manifold, oriented, no self-intersection, duplicate or
  * degenerate triangle, checked by tessel_mesh_check with exact predicates)
  * on every input, closedness and the right topology (Euler characteristic)

@@ -1,4 +1,4 @@
-/* The orientation check by ray parity (src/orient.c) on a triangulated
+/* The orientation check by ray parity (src/mesh/orient.c) on a triangulated
  * sphere whose triangles' windings the test sets: it must find a region
  * turned inward, mark its rim, and leave alone what parity cannot judge
  * (a whole component, an open surface). */

@@ -1,5 +1,5 @@
-/* Refinement (src/refine.c) and the whole noisy-cloud pipeline
- * (src/smooth_pipeline.c). Refinement of a coarse sphere against a dense
+/* Refinement (src/refine/) and the whole noisy-cloud pipeline
+ * (src/pipeline/). Refinement of a coarse sphere against a dense
  * sample must bring the surface closer to the sphere while the mesh stays
  * closed, manifold, oriented and free of self-intersections, give the same
  * bits for any thread count, leave a plane alone and refuse invalid meshes.

@@ -1,4 +1,4 @@
-/* Robust smoothing (src/smooth.c): noisy plane and sphere with known
+/* Robust smoothing (src/smooth/): noisy plane and sphere with known
  * surfaces, robustness to outliers, sharp edges of a cube, the projector,
  * independence from thread count and input order, argument checks. */
 #include "pipeline/pipeline.h"

@@ -1,5 +1,5 @@
 /* tessel reconstruct IN OUT: surface reconstruction. The default method is
- * the greedy projection of Gopi & Krishnan 2002 (src/greedy.c); --mode
+ * the greedy projection of Gopi & Krishnan 2002 (src/greedy/); --mode
  * height|range|grid selects the fixed-plane variant (cmd_reconstruct_fixed)
  * and --method smooth the noisy-cloud pipeline (cmd_reconstruct_smooth).
  * The triangles stream into the mesh writer. See docs/greedy.md. */

@@ -11,7 +11,7 @@
  *    triangles is one path or one cycle. Orientability is decided by
  *    2-colouring triangles with a union-find that carries parities.
  *  - Degenerate triangles: a repeated index, or three exactly collinear
- *    vertices (robust orientation predicates, src/predicates.c).
+ *    vertices (robust orientation predicates, src/core/predicates.c).
  *  - Self-intersections: pairs of non-degenerate triangles whose bounding
  *    boxes overlap (found with a bounding volume hierarchy over the boxes,
  *    Morton-ordered as in Lauterbach et al. 2009, "Fast BVH construction on

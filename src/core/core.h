@@ -158,7 +158,7 @@ void tsl_eigen_sym3(const double a[9], double w[3], double v[9]);
 bool tsl_sym3_values(const double m[6], double l[3]);
 bool tsl_sym3_vector(const double m[6], double l, double v[3]);
 
-/* ---- robust orientation predicates (src/predicates.c, Shewchuk 1997) ----
+/* ---- robust orientation predicates (src/core/predicates.c, Shewchuk 1997) ----
  * The SIGN of the result is exact (filtered double evaluation, exact
  * expansion arithmetic when the filter cannot decide); the magnitude is an
  * approximation. Exact for any inputs whose products neither overflow nor
@@ -180,7 +180,7 @@ bool tsl_triangle_degenerate(const double *p[3]);
 bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const uint32_t ib[3],
                              const double *pb[3]);
 
-/* ---- neighbour search (src/kdtree.c) ---- */
+/* ---- neighbour search (src/core/kdtree.c) ---- */
 
 /* Writes the index's count point indices in its storage order (leaf by
  * leaf). Self-queries issued in this order find the tree in cache: 1.7x

@@ -1,8 +1,8 @@
 /* A uniform grid of points sorted by cell: the neighbour structure of the
- * smoothing passes (src/smooth.c), which serve all the points of a cell
+ * smoothing passes (src/smooth/), which serve all the points of a cell
  * from the runs of the cells around it. Building it is a radix sort,
  * linear in the number of points. Declarations and the small inline
- * helpers are in src/grid.h. */
+ * helpers are in src/core/grid.h. */
 #include "core/grid.h"
 
 #include <stdlib.h>

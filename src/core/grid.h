@@ -1,5 +1,5 @@
-/* Private: a uniform grid of points sorted by cell (src/grid.c), the
- * neighbour structure of the smoothing passes (src/smooth.c). Cells are
+/* Private: a uniform grid of points sorted by cell (src/core/grid.c), the
+ * neighbour structure of the smoothing passes (src/smooth/). Cells are
  * numbered by the Morton code of their integer coordinates, so nearby
  * cells are near in memory; each occupied cell is a run of the sorted
  * points, found through an open-addressing hash. Not installed. */
@@ -47,7 +47,7 @@ size_t tsl_grid_ring(const tsl_grid *g, const uint32_t cc[3], int ring, uint32_t
 
 /* The mean spacing of the n points g holds (xyz, in their order), exactly
  * as tessel_cloud_spacing measures it (the same value), with the nearest
- * neighbours found in g instead of a kd-tree: src/stats.c. */
+ * neighbours found in g instead of a kd-tree: src/core/stats.c. */
 tessel_status tsl_grid_spacing(const tsl_grid *g, const float *xyz, size_t n, int threads,
                                double *spacing);
 

@@ -10,7 +10,7 @@
 
 /* tessel_advancing_front with a second set of unit normal lines (count*3
  * floats, sign not meaningful; NULL: none): a new triangle's normal may
- * agree with either line at each vertex (src/advancing_front.c; the
+ * agree with either line at each vertex (src/front/; the
  * pipeline passes the robust fit's normals of the representatives). */
 tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float *lines,
                                         const tessel_front_params *params,

@@ -1,13 +1,13 @@
 /* Private declarations of the greedy projection reconstruction (Gopi &
  * Krishnan 2002), shared by its four files:
- *   src/greedy.c        reference points, seeds, the main loop, the API
- *   src/greedy_store.c  dexel array, triangle pool, fans, retirement, set-up
- *   src/greedy_guard.c  exact intersection tests, the free-cone certificate
- *   src/greedy_held.c   with the whole mesh held: regions meshed inside out
- *                       found and rebuilt, diagonal flips
+ *   greedy.c  reference points, seeds, the main loop, the API
+ *   store.c   dexel array, triangle pool, fans, retirement, set-up
+ *   guard.c   exact intersection tests, the free-cone certificate
+ *   held.c    with the whole mesh held: regions meshed inside out found
+ *             and rebuilt, diagonal flips (mesh/flip.c)
  * Not installed. */
-#ifndef TESSEL_GREEDY_INTERNAL_H
-#define TESSEL_GREEDY_INTERNAL_H
+#ifndef TESSEL_GREEDY_H
+#define TESSEL_GREEDY_H
 
 #include "mesh/mesh.h"
 
@@ -51,7 +51,7 @@ enum {
 #define SEED_DONE_RATIO 2
 /* A front's triangle may not lie on a held one as a second layer: facing
  * within acos(LAYER_COS) of the same way, within LAYER_HEIGHT of its
- * longest edge off its plane, overlapping it (greedy_guard.c,
+ * longest edge off its plane, overlapping it (guard.c,
  * second_layer). On uniformly random samples such layers lie within 0.025
  * of the edge; the nearby triangles of scans (curved, slits) mostly
  * farther: at 0.05 man.ply's boundary grew by a tenth, at 0.03 it does
@@ -114,7 +114,7 @@ typedef struct gp_cone {
 
 /* A hashed grid of cells, each the head of a list whose links live
  * elsewhere: open addressing on the cell key + 1 (0 marks an empty slot).
- * Used for the long and the short triangles (greedy_store.c keeps it). */
+ * Used for the long and the short triangles (store.c keeps it). */
 /* A cell's key (+ 1; 0 = empty slot) and the head of its list, together:
  * a lookup reads one cache line, not one in each of two arrays. */
 typedef struct gp_slot {
@@ -383,7 +383,7 @@ static inline void project_point(const gp *g, uint32_t R, const gp_frame *f, uin
  * at least three triangles in all), or when the point had no triangle. */
 enum { LINK_FAIL = 0, LINK_NEW, LINK_PREPEND, LINK_APPEND, LINK_CLOSE };
 
-/* ---- src/greedy.c ---- */
+/* ---- greedy.c ---- */
 
 /* One pass of the front over the cloud (params already checked), its
  * progress reported as `stage`; summary->seconds is left 0. */
@@ -398,17 +398,17 @@ typedef struct gp_collect {
 } gp_collect;
 tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count);
 
-/* ---- src/greedy_held.c ---- */
+/* ---- held.c ---- */
 
 /* The pass with every triangle held; then, when check, regions meshed
- * inside out found by ray parity (src/orient.c) and rebuilt by a second
+ * inside out found by ray parity (src/mesh/orient.c) and rebuilt by a second
  * pass; then, when params->flip, the diagonal flips; then all sent to
  * sink. */
 tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           bool check, const tessel_callbacks *callbacks,
                           const tessel_triangle_sink *sink, tessel_recon_summary *summary);
 
-/* ---- src/greedy_store.c ---- */
+/* ---- store.c ---- */
 
 /* Set-up (dexel array, spacing, duplicates, blocks, seed order) and
  * release. */
@@ -462,7 +462,7 @@ tessel_status tsl_gp_tri_add(gp *g, uint32_t a, uint32_t b, uint32_t c, int exis
 int tsl_gp_link_check(const gp *g, uint32_t p, uint32_t a, uint32_t b, int edges);
 void tsl_gp_link_apply(gp *g, uint32_t p, uint32_t a, uint32_t b, int how, int is_ref);
 
-/* ---- src/greedy_guard.c ---- */
+/* ---- guard.c ---- */
 
 /* Exact: a, b, c collinear. */
 int tsl_gp_collinear3(const double a[3], const double b[3], const double c[3]);
@@ -482,4 +482,4 @@ tessel_status tsl_gp_guard_ready(gp *g);
 int tsl_gp_guard_ok(gp *g, const uint32_t v[3], const double q1[2], const double q2[2],
                     int layers);
 
-#endif /* TESSEL_GREEDY_INTERNAL_H */
+#endif /* TESSEL_GREEDY_H */

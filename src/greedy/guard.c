@@ -1,7 +1,7 @@
 /* Exact validity guard of the greedy projection reconstruction: a new
  * triangle is accepted only if it meets no held triangle except in a shared
  * vertex or edge, decided with exact orient2d/orient3d (same semantics as
- * the mesh check, src/check.c). Most held triangles are ruled out without a
+ * the mesh check, src/check/). Most held triangles are ruled out without a
  * test by the free-cone certificate: the projection on R's plane is linear,
  * so triangles whose images stay out of R's free sector cannot meet the new
  * triangles, which lie in it. The paper (Gopi & Krishnan 2002, section 4.1,

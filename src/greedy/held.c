@@ -7,7 +7,7 @@
  *    it closer than the sampling can separate (a hand on a thigh), it
  *    carries the wrong side across, and the region behind the step comes
  *    out inside out although every edge agrees with its neighbours. Only a
- *    global test sees it: the ray-parity check of src/orient.c, or, when
+ *    global test sees it: the ray-parity check of src/mesh/orient.c, or, when
  *    the points have normals or a viewpoint, their verdict (a noisy scan
  *    folds the front over itself the same way). The regions found facing
  *    the wrong way are flipped, their rims and the triangles

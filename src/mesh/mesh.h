@@ -1,14 +1,15 @@
-/* The mesh layer, private to the library: what every reconstruction
- * method shares (a triangle hash grid, vertex corners and fans, checked
- * diagonal flips, the orientation check). The methods build on it and not
- * on each other. Not installed. */
+/* The mesh layer, private to the library: what the reconstruction
+ * methods share (a triangle hash grid, vertex corners, fans and
+ * components, checked flips and splits, the orientation check by ray
+ * parity). The methods build on it and not on each other. Not
+ * installed. */
 #ifndef TESSEL_MESH_H
 #define TESSEL_MESH_H
 
 #include "core/core.h"
 
-/* ---- triangle hash grid and exact triangle tests (src/advancing_front.c),
- * shared by the advancing front and the refinement (src/refine.c) ----
+/* ---- triangle hash grid (mesh/trigrid.c), the advancing front's and the
+ * checked edits' index of the triangles near a new one ----
  * A uniform grid hashed on cell coordinates; a triangle is listed in every
  * cell its bounding box meets. Insert-only: a caller that replaces
  * triangles inserts the new ones and skips stale ids it gets back, so a
@@ -65,6 +66,8 @@ tessel_status tsl_trigrid_hits_begin(tsl_trigrid_hits *h);
 tessel_status tsl_trigrid_collect(const tsl_trigrid *g, const double lo[3], const double hi[3],
                                   tsl_trigrid_hits *h);
 void tsl_trigrid_hits_free(tsl_trigrid_hits *h);
+
+/* ---- topology (mesh/topology.c) ---- */
 
 /* The corners of each vertex: corner[start[v] .. start[v + 1]) are the
  * corners i (triangle i / 3, position i % 3) of tri[0 .. 3 nt) at vertex
@@ -214,8 +217,8 @@ static inline uint32_t tsl_he_to(const tsl_edit *e, uint32_t h)
 
 /* Flips, in place, the diagonal of every pair of triangles whose angles
  * opposite it add up to more than pi (the Delaunay rule, which raises the
- * pair's smallest angle), pass after pass, with the refinement's checks
- * (src/refine.c): each flip kept only if the new edge is not there
+ * pair's smallest angle), pass after pass, with the checks of the edits
+ * (mesh/edit.c): each flip kept only if the new edge is not there
  * already, neither new triangle turns more than 60 degrees from the pair's
  * normal and neither meets the mesh beyond shared vertices and edges
  * (exact). tri (nt triangles over the points xyz, nv of them) must be
@@ -228,10 +231,10 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
 /* Removes the triangles (tri[3 i ..], *count of them, consistently
  * oriented, over n vertices) at every vertex with more than one fan, until
  * none is left, keeping the rest in order; only vertices flagged in touched
- * (cleared on return) can have one (src/advancing_front.c). */
+ * (cleared on return) can have one (mesh/topology.c). */
 tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched);
 
-/* ---- orientation check by ray parity (src/orient.c) ----
+/* ---- orientation check by ray parity (src/mesh/orient.c) ----
  * For the triangles tri[0 .. nt) over xyz (nv points): mark[t] = 1 for a
  * triangle of a connected region whose rays say it faces into a closed
  * surface while most of its component faces out (flip it), 2 for such a

@@ -1,6 +1,6 @@
 /* Orientation check by ray parity, for meshes of closed objects (beyond
  * Mederos, Velho & de Figueiredo 2003; used by the smooth pipeline and by
- * the greedy projection, src/greedy_held.c).
+ * the greedy projection, src/greedy/held.c).
  *
  * The advancing front carries a component's orientation from triangle to
  * triangle (section 2.4). Where two sheets touch closer than the

@@ -17,7 +17,7 @@
  * c = l1 / (l0 + l1) from the covariance eigenvalues l0 <= l1 <= l2
  * (c is 1 for a clean plane, 1/2 for a line or an isotropic blob): unreliable
  * normals then end up as leaves of the tree instead of relays. On the
- * noisy sets of /work/shared/data this cut the normals pointing the wrong
+ * noisy evaluation clouds (bench/README.md) this cut the normals pointing the wrong
  * way by up to 60% and never made it worse (docs/neighbours.md).
  *
  * Each connected component of the graph starts at its point of largest z:

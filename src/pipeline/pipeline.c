@@ -1,9 +1,9 @@
 /* The noisy-cloud pipeline of Mederos, Velho & de Figueiredo 2003, "Smooth
  * surface reconstruction from noisy clouds", section 2, in one call:
- * robust smoothing (2.1, src/smooth.c), BSP clustering (2.2, src/cluster.c),
- * one representative per cluster (2.3, src/simplify.c), advancing-front
- * triangulation of the representatives (2.4, src/advancing_front.c) and
- * refinement against the smoothed cloud (2.5, src/refine.c).
+ * robust smoothing (2.1, smooth/), BSP clustering (2.2, smooth/cluster.c),
+ * one representative per cluster (2.3, smooth/simplify.c), advancing-front
+ * triangulation of the representatives (2.4, front/) and refinement
+ * against the smoothed cloud (2.5, refine/).
  *
  * The spacing h is estimated once and handed to every stage, and the
  * projection operator Q of steps 3 and 5 is the smoothing's own. The
@@ -610,7 +610,7 @@ static tessel_status repair_holes(const double (*repairs)[2], size_t count, int 
     return st;
 }
 
-/* Regions the front meshed inside out (src/orient.c) flipped, their rims
+/* Regions the front meshed inside out (src/mesh/orient.c) flipped, their rims
  * dropped, and the front again from the rest to close the seams (the
  * caller's hole repair follows for what it leaves open). */
 static tessel_status repair_orientation(tessel_mesh *mesh, const tessel_cloud *reps,

@@ -5,7 +5,7 @@
 
 #include "mesh/mesh.h"
 
-/* ---- the noisy-cloud pipeline (src/smooth_pipeline.c) ---- */
+/* ---- the noisy-cloud pipeline (src/pipeline/) ---- */
 
 /* How many components of m are stray pieces: at most STRAY_FRACTION (1%)
  * of its triangles each, counted only when there are at most STRAY_MAX (8)

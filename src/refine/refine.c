@@ -12,14 +12,14 @@
  * skinny (shortest / longest edge below a ratio). Then diagonals are
  * flipped wherever the other diagonal of two adjacent triangles is shorter.
  *
- * The per-edge work (neighbour search, fit, projection) runs in parallel;
- * splits and flips are then applied one at a time in a fixed order (longest
- * edge first), each checked before it is kept: its new triangles must not
- * turn by more than 60 degrees from the ones they replace, and must not
- * intersect any triangle of the mesh beyond shared vertices and edges
- * (exact predicates, the advancing front's triangle hash grid). A split or
- * flip that fails is undone, so the mesh stays manifold, oriented and free
- * of self-intersections. */
+ * The per-edge work (neighbour search, fit, projection) runs in parallel,
+ * the edges in Morton order of their midpoints; the splits and flips are
+ * the mesh layer's checked edits (mesh/edit.c, split.c, flip.c), made in
+ * parallel blocks with a result that does not depend on the thread count:
+ * each is checked before it is kept (its new triangles must not turn by
+ * more than 60 degrees from the ones they replace, nor meet any triangle
+ * beyond shared vertices and edges, exactly), so the mesh stays manifold,
+ * oriented and free of self-intersections. */
 #include "mesh/mesh.h"
 #include "smooth/smooth.h"
 

@@ -8,7 +8,7 @@
  * rasterization", SIGGRAPH 1988); lines with a DDA and a depth bias so that
  * edges lying on the surface win against it. Boundary edges come from the
  * same bucketing of half-edges on their smaller vertex that the mesh check
- * uses (src/check.c).
+ * uses (src/check/).
  *
  * Threads split the image into horizontal bands; every band walks all
  * triangles in index order, so each pixel sees the same sequence of writes

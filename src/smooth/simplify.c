@@ -2,7 +2,7 @@
  * de Figueiredo, "Smooth surface reconstruction from noisy clouds" (2003),
  * section 2.3: the centroid c of a cluster is not on the surface (the
  * cluster is curved, and noisy), so it is projected onto the clustered cloud
- * with the robust operator Q of section 2.1 (src/smooth.c); Q(c) is the
+ * with the robust operator Q of section 2.1 (src/smooth/); Q(c) is the
  * representative. Clusters are independent: an OpenMP loop writes one slot
  * per cluster, and the kept slots are compacted in cluster order, so the
  * output does not depend on the thread count. */

@@ -89,7 +89,7 @@ tessel_status tsl_smooth_check_params(const tessel_smooth_params *p)
     return TESSEL_OK;
 }
 
-/* ---- neighbour search on the grid (src/grid.c) ---- */
+/* ---- neighbour search on the grid (src/core/grid.c) ---- */
 
 /* The k nearest within the cut-off, sorted by (distance, index) as the
  * kd-tree orders them. */

@@ -8,7 +8,7 @@
 
 #include <string.h>
 
-/* ---- the projector's own index (src/smooth.c), shared by the stages
+/* ---- the projector's own index (src/smooth/), shared by the stages
  * that search the same cloud ---- */
 
 /* The kd-tree over the projector's cloud, when that cloud's coordinates
