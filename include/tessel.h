@@ -484,6 +484,35 @@ TESSEL_API tessel_status tessel_mesh_check(const tessel_mesh *mesh,
 TESSEL_API int tessel_mesh_report_valid(const tessel_mesh_report *report);
 
 /* ------------------------------------------------------------------------ */
+/* Sampling a mesh (src/sample/)                                            */
+/* ------------------------------------------------------------------------ */
+
+typedef struct tessel_sample_params {
+    double noise;     /* standard deviation of isotropic Gaussian noise added
+                         to each point, world units; default 0 (none) */
+    double noise_rel; /* the same as a fraction of the mesh's bounding-box
+                         diagonal, used when noise is 0; default 0 */
+    uint64_t seed;    /* default 1; the same seed gives the same points for
+                         any thread count */
+    int normals;      /* 1 (default): each point gets its triangle's unit
+                         normal; 0: none */
+    int threads;      /* 0 = OpenMP default */
+} tessel_sample_params;
+TESSEL_API tessel_sample_params tessel_sample_params_default(void);
+
+/* Draws count points uniformly distributed over the mesh's area (each
+ * triangle with probability proportional to its area, uniformly inside
+ * it), plus the noise of params, into *out (allocated; in the mesh's local
+ * frame: same offset). Degenerate triangles get no point.
+ * TESSEL_ERR_TOO_FEW_POINTS when the mesh has no area; INVALID_ARG for a
+ * triangle index out of range or a negative noise; LIMIT for count >=
+ * 2^32 - 1. Progress stage: "sample". */
+TESSEL_API tessel_status tessel_mesh_sample(const tessel_mesh *mesh, size_t count,
+                                            const tessel_sample_params *params,
+                                            const tessel_callbacks *callbacks,
+                                            tessel_cloud *out);
+
+/* ------------------------------------------------------------------------ */
 /* Rendering (src/render/)                                                  */
 /* ------------------------------------------------------------------------ */
 

@@ -289,6 +289,48 @@ static void test_dropped_points(void)
     remove(path);
 }
 
+/* tessel sample: N points with the noise asked for, written with normals;
+ * a cloud (no triangles), a bad N and a bad option are refused. */
+static void test_sample(void)
+{
+    tessel_mesh m;
+    CHECK(tessel_mesh_alloc(&m, 4, 2, 0, 0) == TESSEL_OK);
+    const float v[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+    const uint32_t t[6] = {0, 1, 2, 0, 2, 3};
+    memcpy(m.xyz, v, sizeof v);
+    memcpy(m.triangles, t, sizeof t);
+    char in[512], out[512], args[2048];
+    snprintf(in, sizeof in, "%s/keep_square.ply", tmpdir);
+    snprintf(out, sizeof out, "%s/keep_square_s.ply", tmpdir);
+    CHECK(tessel_mesh_write(&m, in, NULL, NULL) == TESSEL_OK);
+    tessel_mesh_free(&m);
+    snprintf(args, sizeof args, "sample %s 2e4 %s --noise 0.01 --seed 3 --json", in, out);
+    CHECK(run(args) == 0 && strstr(slurp("out.txt"), "\"points\": 20000"));
+    tessel_cloud c;
+    CHECK(tessel_cloud_read(&c, out, NULL, NULL) == TESSEL_OK);
+    double s2 = 0.0;
+    size_t inside = 0;
+    for (size_t i = 0; i < c.count; i++) {
+        const float *p = c.xyz + 3 * i;
+        s2 += (double)p[2] * p[2];
+        inside += p[0] > -0.05f && p[0] < 1.05f && p[1] > -0.05f && p[1] < 1.05f;
+    }
+    CHECK(c.count == 20000 && c.normals != NULL && inside == c.count);
+    CHECK_MSG(fabs(sqrt(s2 / (double)c.count) - 0.01) < 0.0005, "noise %g",
+              sqrt(s2 / (double)c.count));
+    tessel_cloud_free(&c);
+    /* A point cloud has nothing to sample: an input error naming it. */
+    snprintf(args, sizeof args, "sample %s 10 %s/never.ply", out, tmpdir);
+    CHECK(run(args) == 2 && strstr(slurp("err.txt"), "no triangles"));
+    snprintf(args, sizeof args, "sample %s 1.5 %s/never.ply", in, tmpdir);
+    CHECK(run(args) == 1 && strstr(slurp("err.txt"), "whole number"));
+    snprintf(args, sizeof args, "sample %s 10 %s/never.ply --noise -1", in, tmpdir);
+    CHECK(run(args) == 1);
+    CHECK(stray_files() == 0);
+    unlink(in);
+    unlink(out);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/tessel_test_cli_XXXXXX");
@@ -302,6 +344,7 @@ int main(void)
     test_normals();
     test_smooth();
     test_dropped_points();
+    test_sample();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
     if (system(cmd) != 0)

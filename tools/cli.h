@@ -118,6 +118,7 @@ int cmd_convert(int argc, char **argv);
 int cmd_normals(int argc, char **argv);
 int cmd_check(int argc, char **argv);
 int cmd_render(int argc, char **argv);
+int cmd_sample(int argc, char **argv);
 int cmd_smooth(int argc, char **argv);
 int cmd_simplify(int argc, char **argv);
 /* tessel reconstruct IN OUT: dispatches on --mode / --method; the default

@@ -19,6 +19,7 @@ static const command commands[] = {
     {"simplify", cmd_simplify, "reduce a cloud to one representative per cluster"},
     {"check", cmd_check, "check a mesh: manifold, orientation, intersections, distances"},
     {"render", cmd_render, "render a mesh or point cloud to PNG"},
+    {"sample", cmd_sample, "draw points uniformly over a mesh, with optional noise"},
 };
 
 static void usage(FILE *out)
