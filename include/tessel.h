@@ -345,6 +345,29 @@ TESSEL_API tessel_status tessel_cloud_stats_compute(const tessel_cloud *cloud,
  * spacing" parameter. */
 TESSEL_API tessel_status tessel_cloud_spacing(const tessel_cloud *cloud, double *spacing);
 
+/* The noise of a cloud, estimated from the cloud alone (docs/noise.md):
+ * heights above local planes fitted over balls of growing size (Mitra,
+ * Nguyen & Guibas 2004), the smallest ball well above the noise giving
+ * sigma, corrected for the ball's cut through the noisy slab and for the
+ * curvature. */
+typedef struct tessel_noise_estimate {
+    double sigma;           /* standard deviation of the points' distances
+                               from the surface, world units */
+    double surface_spacing; /* 1 / sqrt(points per unit area of the
+                               surface), world units (for a uniform random
+                               sample about twice the mean nearest-neighbour
+                               distance of the clean cloud) */
+    double noise_ratio;     /* sigma / surface_spacing */
+    size_t samples;         /* seed points the medians were taken over */
+} tessel_noise_estimate;
+
+/* Estimates the noise of cloud into *out. threads: 0 = OpenMP default; the
+ * result does not depend on it. Clouds of more than 2^18 points are
+ * estimated on a subsample of that size. TESSEL_ERR_TOO_FEW_POINTS under
+ * 32 points. */
+TESSEL_API tessel_status tessel_cloud_noise(const tessel_cloud *cloud, int threads,
+                                            tessel_noise_estimate *out);
+
 /* Merges points closer than tolerance (absolute length; 0 merges exact
  * duplicates only) into the first of them, in input order, keeping normals
  * and colours of the kept point. Writes the number removed to *removed

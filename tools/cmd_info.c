@@ -6,7 +6,9 @@
 static const char info_help[] =
     "usage: tessel info FILE [--json] [--threads N]\n\n"
     "Prints the file's format, point and triangle counts, attributes,\n"
-    "bounding box, mean and median point spacing, exact duplicates, isolated\n"
+    "bounding box, mean and median point spacing, the noise estimated from\n"
+    "the cloud (standard deviation of the points' distance from the surface,\n"
+    "in world units and in mean spacings), exact duplicates, isolated\n"
     "outliers and how many points were dropped for NaN/Inf coordinates.\n\n";
 
 static bool format_has_faces(tessel_format f)
@@ -17,7 +19,8 @@ static bool format_has_faces(tessel_format f)
 
 /* st is NULL when the cloud has too few points for statistics. */
 static void print_text(const char *path, tessel_format format, const tessel_cloud *c,
-                       size_t triangles, const tessel_cloud_stats *st)
+                       size_t triangles, const tessel_cloud_stats *st,
+                       const tessel_noise_estimate *noise)
 {
     printf("file:        %s\n", path);
     printf("format:      %s\n", format == TESSEL_FORMAT_AUTO ? "detected from content"
@@ -43,13 +46,18 @@ static void print_text(const char *path, tessel_format format, const tessel_clou
     printf("bbox max:    %.9g %.9g %.9g\n", st->bbox_max[0], st->bbox_max[1], st->bbox_max[2]);
     printf("diagonal:    %.9g\n", st->diagonal);
     printf("spacing:     mean %.6g, median %.6g\n", st->mean_spacing, st->median_spacing);
+    if (noise)
+        printf("noise:       %.6g (%.2f spacings; %.2f times the surface spacing %.6g)\n",
+               noise->sigma, noise->sigma / st->mean_spacing, noise->noise_ratio,
+               noise->surface_spacing);
     printf("duplicates:  %zu\n", st->exact_duplicates);
     printf("outliers:    %zu\n", st->outliers);
     printf("nan/inf:     %zu dropped\n", c->dropped_nonfinite);
 }
 
 static void print_json(const char *path, tessel_format format, const tessel_cloud *c,
-                       size_t triangles, const tessel_cloud_stats *st)
+                       size_t triangles, const tessel_cloud_stats *st,
+                       const tessel_noise_estimate *noise)
 {
     printf("{\"file\": ");
     cli_json_string(stdout, path);
@@ -75,6 +83,11 @@ static void print_json(const char *path, tessel_format format, const tessel_clou
            st->bbox_max[2]);
     printf(", \"diagonal\": %.17g, \"mean_spacing\": %.17g, \"median_spacing\": %.17g",
            st->diagonal, st->mean_spacing, st->median_spacing);
+    if (noise)
+        printf(", \"noise\": %.17g, \"noise_spacings\": %.17g, \"surface_spacing\": %.17g, "
+               "\"noise_ratio\": %.17g",
+               noise->sigma, noise->sigma / st->mean_spacing, noise->surface_spacing,
+               noise->noise_ratio);
     printf(", \"duplicates\": %zu, \"outliers\": %zu, \"nonfinite_dropped\": %zu}\n",
            st->exact_duplicates, st->outliers, c->dropped_nonfinite);
 }
@@ -142,10 +155,15 @@ int cmd_info(int argc, char **argv)
         tessel_cloud_free(&cloud);
         return CLI_FAILURE;
     }
+    tessel_noise_estimate noise;
+    bool have_noise =
+        have_stats && tessel_cloud_noise(&cloud, common.threads, &noise) == TESSEL_OK;
+    const tessel_cloud_stats *stp = have_stats ? &stats : NULL;
+    const tessel_noise_estimate *np = have_noise ? &noise : NULL;
     if (common.json)
-        print_json(path, format, &cloud, triangles, have_stats ? &stats : NULL);
+        print_json(path, format, &cloud, triangles, stp, np);
     else
-        print_text(path, format, &cloud, triangles, have_stats ? &stats : NULL);
+        print_text(path, format, &cloud, triangles, stp, np);
     tessel_cloud_free(&cloud);
     return CLI_OK;
 }
