@@ -1339,6 +1339,17 @@ typedef struct tessel_smooth_recon_params {
                                         stay farther apart than the noise
                                         left can confuse, yet follow thin
                                         parts of clean clouds; 0: as given */
+    double noise_ratio_max;          /* the noise is measured first
+                                        (tessel_cloud_noise); when it is
+                                        more than this many surface spacings,
+                                        the cloud is thinned (a subsample by
+                                        a hash of the point index) until it
+                                        is this many: the stages work at the
+                                        noise they are tuned for, in time
+                                        linear in the points, and detail
+                                        finer than the noise cannot be
+                                        recovered anyway. Default 1.0; 0: no
+                                        measurement, no thinning */
     int threads;                     /* every stage's thread count when not
                                         0; 0 (default) leaves each stage's */
 } tessel_smooth_recon_params;
@@ -1348,6 +1359,10 @@ typedef struct tessel_smooth_recon_stats {
     double spacing;                  /* h, world units */
     double cluster_diameter;         /* max_diameter used, multiple of h */
     size_t points;                   /* input points */
+    double noise;                    /* measured noise, world units (0 when
+                                        not measured) */
+    double noise_ratio;              /* the same in surface spacings */
+    size_t points_used;              /* points after thinning */
     size_t representatives;          /* points triangulated */
     size_t vertices, triangles;      /* in the result */
     size_t border_edges;             /* edges with one triangle */
@@ -1358,7 +1373,7 @@ typedef struct tessel_smooth_recon_stats {
                                         (src/mesh/orient.c); only for clouds
                                         without normals or viewpoint */
     /* Wall-clock seconds per stage (as the paper's Table 1) and in all. */
-    double seconds_spacing, seconds_smooth, seconds_simplify, seconds_front,
+    double seconds_noise, seconds_spacing, seconds_smooth, seconds_simplify, seconds_front,
         seconds_refine, seconds_total;
     tessel_smooth_stats smooth;
     tessel_simplify_stats simplify;

@@ -262,29 +262,41 @@ int cmd_reconstruct_smooth(int argc, char **argv)
     }
     double seconds = cli_now() - t0;
     if (common.json) {
-        printf("{\"method\": \"smooth\", \"points\": %zu, \"spacing\": %.9g, "
+        printf("{\"method\": \"smooth\", \"points\": %zu, \"noise\": %.9g, "
+               "\"noise_ratio\": %.4g, \"points_used\": %zu, \"spacing\": %.9g, "
                "\"cluster_diameter\": %.4g, "
                "\"representatives\": %zu, \"vertices\": %zu, \"triangles\": %zu, "
                "\"border_edges\": %zu, \"seeds\": %zu, \"bridges\": %zu, "
                "\"hole_triangles\": %zu, \"reoriented\": %zu, \"splits\": %zu, "
                "\"flips\": %zu, "
-               "\"read_seconds\": %.6f, \"spacing_seconds\": %.6f, \"smooth_seconds\": %.6f, "
+               "\"read_seconds\": %.6f, \"noise_seconds\": %.6f, \"spacing_seconds\": %.6f, "
+               "\"smooth_seconds\": %.6f, "
                "\"simplify_seconds\": %.6f, \"front_seconds\": %.6f, "
                "\"refine_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
                "\"write_seconds\": %.6f, \"seconds\": %.6f}\n",
-               n, s.spacing, s.cluster_diameter, s.representatives, s.vertices, s.triangles,
+               n, s.noise, s.noise_ratio, s.points_used, s.spacing, s.cluster_diameter,
+               s.representatives, s.vertices, s.triangles,
                s.border_edges,
                s.front.seeds, s.front.bridges, s.front.hole_triangles, s.reoriented,
                s.refine.splits,
-               s.refine.flips, t_read, s.seconds_spacing, s.seconds_smooth,
+               s.refine.flips, t_read, s.seconds_noise, s.seconds_spacing, s.seconds_smooth,
                s.seconds_simplify, s.seconds_front, s.seconds_refine, s.seconds_total,
                t_write, seconds);
     } else if (!common.quiet) {
+        if (s.points_used < n)
+            fprintf(stderr,
+                    "tessel: noise %.4g = %.2f surface spacings: thinned to %zu points "
+                    "(%.2f spacings; detail finer than the noise is not recoverable)\n",
+                    s.noise, s.noise_ratio, s.points_used, o.p.noise_ratio_max);
+        else if (s.noise > 0.0)
+            fprintf(stderr, "tessel: noise %.4g = %.2f surface spacings\n", s.noise,
+                    s.noise_ratio);
         fprintf(stderr,
                 "tessel: smooth method: %zu points, spacing h = %.4g; %zu representatives "
                 "(clusters up to %.3g h); %zu triangles on them (%zu fronts, %zu hole "
                 "triangles, %zu border edges)\n",
-                n, s.spacing, s.representatives, s.cluster_diameter, s.front.triangles,
+                s.points_used, s.spacing, s.representatives, s.cluster_diameter,
+                s.front.triangles,
                 s.front.seeds,
                 s.front.hole_triangles, s.front.border_edges);
         if (s.reoriented)

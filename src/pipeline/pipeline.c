@@ -65,8 +65,77 @@ tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
     p.front = tessel_front_params_default();
     p.refine = tessel_refine_params_default();
     p.auto_cluster_size = 1;
+    p.noise_ratio_max = 1.0;
     p.threads = 0;
     return p;
+}
+
+static uint64_t mix64(uint64_t z)
+{
+    z += 0x9E3779B97F4A7C15ULL;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+}
+
+/* The points of c whose index hashes below keep (a fraction), with their
+ * normals and colours, into *out (no organized grid: it would have holes
+ * everywhere); the viewpoint and the offset stay. */
+static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud *out)
+{
+    uint64_t limit = (uint64_t)(keep * 0x1.0p64);
+    size_t n = 0;
+    for (size_t i = 0; i < c->count; i++)
+        n += mix64(i) < limit;
+    tessel_status st = tessel_cloud_alloc(out, n, c->normals != NULL, c->rgb != NULL);
+    if (st)
+        return st;
+    memcpy(out->offset, c->offset, sizeof out->offset);
+    memcpy(out->viewpoint, c->viewpoint, sizeof out->viewpoint);
+    out->has_viewpoint = c->has_viewpoint;
+    for (size_t i = 0, j = 0; i < c->count; i++) {
+        if (!(mix64(i) < limit))
+            continue;
+        memcpy(out->xyz + 3 * j, c->xyz + 3 * i, 3 * sizeof *out->xyz);
+        if (c->normals)
+            memcpy(out->normals + 3 * j, c->normals + 3 * i, 3 * sizeof *out->normals);
+        if (c->rgb)
+            memcpy(out->rgb + 3 * j, c->rgb + 3 * i, 3);
+        j++;
+    }
+    return TESSEL_OK;
+}
+
+/* The noise measured (s->noise, s->noise_ratio) and, above
+ * params->noise_ratio_max surface spacings, the thinned cloud in *thinned
+ * (*use points to it, else to cloud). */
+static tessel_status measure_noise(const tessel_cloud *cloud, const tessel_smooth_recon_params *p,
+                                   tessel_smooth_recon_stats *s, tessel_cloud *thinned,
+                                   const tessel_cloud **use)
+{
+    *use = cloud;
+    s->points_used = cloud->count;
+    if (!(p->noise_ratio_max > 0.0))
+        return TESSEL_OK;
+    double t0 = tsl_seconds();
+    tessel_noise_estimate e;
+    tessel_status st = tessel_cloud_noise(cloud, p->threads ? p->threads : p->smooth.threads, &e);
+    if (st == TESSEL_ERR_TOO_FEW_POINTS)
+        return TESSEL_OK; /* too small to say: the stages decide */
+    if (st)
+        return st;
+    s->noise = e.sigma;
+    s->noise_ratio = e.noise_ratio;
+    if (e.noise_ratio > p->noise_ratio_max) {
+        /* Density scales with the kept fraction, the spacing with its root. */
+        double keep = p->noise_ratio_max / e.noise_ratio;
+        if ((st = thin_cloud(cloud, keep * keep, thinned)))
+            return st;
+        *use = thinned;
+        s->points_used = thinned->count;
+    }
+    s->seconds_noise = tsl_seconds() - t0;
+    return TESSEL_OK;
 }
 
 /* Drops vertices no triangle uses (keeping order). */
@@ -670,10 +739,19 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     if (cloud->count < 3)
         return TESSEL_ERR_TOO_FEW_POINTS;
 
-    tessel_cloud smoothed = {0}, reps = {0};
+    tessel_cloud smoothed = {0}, reps = {0}, thinned = {0};
     tessel_projector *projector = NULL;
     tessel_status st;
-    double t_all = tsl_seconds(), t = t_all;
+    double t_all = tsl_seconds();
+    const tessel_cloud *input = cloud;
+    if ((st = measure_noise(cloud, &p, &s, &thinned, &input)))
+        goto fail;
+    cloud = input;
+    if (cloud->count < 3) {
+        st = TESSEL_ERR_TOO_FEW_POINTS;
+        goto fail;
+    }
+    double t = tsl_seconds();
 
     /* h once for every stage: the smoothing measures it (on the grid it
      * builds for its neighbours) unless it is given. */
@@ -791,6 +869,7 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     tessel_projector_destroy(projector);
     tessel_cloud_free(&smoothed);
     tessel_cloud_free(&reps);
+    tessel_cloud_free(&thinned);
     if (stats)
         *stats = s;
     return TESSEL_OK;
@@ -798,6 +877,7 @@ fail:
     tessel_projector_destroy(projector);
     tessel_cloud_free(&smoothed);
     tessel_cloud_free(&reps);
+    tessel_cloud_free(&thinned);
     tessel_mesh_free(mesh);
     if (stats)
         *stats = s;
