@@ -697,14 +697,26 @@ static void test_pipeline_thin_torus(void)
     tessel_cloud c;
     CHECK(surf_torus(&c, 1.0, 0.075, 0.02, 4) == TESSEL_OK);
     tessel_smooth_recon_stats s;
-    tessel_mesh m = run_pipeline(&c, 0.02, 4, &s);
+    /* No thinning: on a tube under 4 noise sigmas in radius and 19 points
+     * round, no neighbourhood is both a slab above the noise and flat, and
+     * the noise estimate comes out two to three times too high (a known
+     * limit, docs/noise.md); the repair is what this case tests. */
+    tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
+    p.noise_ratio_max = 0.0;
+    free(c.normals);
+    c.normals = NULL;
+    surf_noise(&c, 0.02, 4);
+    tessel_mesh m;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &m, &s) == TESSEL_OK);
     tessel_mesh_report r = check(&m);
     CHECK_MSG(tessel_mesh_report_valid(&r) && r.self_intersections == 0 && r.components == 1 &&
                   r.boundary_edges == 0,
               "thin torus: %zu components, %zu boundary edges, %zu self-intersections",
               r.components, r.boundary_edges, r.self_intersections);
     CHECK(strays_of(&m) == 0);
-    printf("thin torus: %zu triangles, 1 component, genus %ld\n", m.triangle_count, r.genus);
+    printf("thin torus: noise %.2f surface spacings, %zu of %zu points used, %zu triangles, %zu "
+           "components, genus %ld\n",
+           s.noise_ratio, s.points_used, s.points, m.triangle_count, r.components, r.genus);
     tessel_mesh_free(&m);
     tessel_cloud_free(&c);
 }

@@ -46,6 +46,11 @@ static const char smooth_recon_help_fmt[] =
     "  --min-edge X        do not split edges shorter than X h (default %g)\n"
     "  --no-flip           refinement without diagonal flips\n"
     "  --spacing X         use this h (world units) instead of estimating it\n"
+    "  --max-noise X       noise above X surface spacings (the cloud's own\n"
+    "                      estimate) thins the cloud until it is X: detail\n"
+    "                      finer than the noise cannot be recovered, and the\n"
+    "                      stages are tuned for noise of about a spacing\n"
+    "                      (default %g; 0: never thin)\n"
     "  --method smooth     this method\n"
     "  --ascii             write ascii PLY\n\n";
 
@@ -56,7 +61,8 @@ static void format_help(char *buf, size_t size)
              d.smooth.sigma_rho, d.smooth.sigma_w, d.simplify.cluster.sigma_max,
              d.simplify.cluster.n_min, d.front.max_edge_ratio, d.front.theta_deg,
              d.front.theta_step_deg, d.front.max_angle_deg, d.front.normal_angle_deg, d.front.max_hole_radius,
-             d.front.tile_points, d.refine.min_offset, d.refine.min_edge_length);
+             d.front.tile_points, d.refine.min_offset, d.refine.min_edge_length,
+             d.noise_ratio_max);
 }
 
 typedef struct smooth_recon_opts {
@@ -136,7 +142,7 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
                                         "--max-diameter", "--max-edge", "--theta",
                                         "--theta-step", "--phi",       "--normal-angle",
                                         "--eps",       "--min-edge",   "--max-hole",
-                                        "--spacing"};
+                                        "--spacing",   "--max-noise"};
     for (size_t k = 0; k < sizeof reals / sizeof reals[0]; k++) {
         if (strcmp(a, reals[k]) != 0)
             continue;
@@ -194,9 +200,13 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
             ok = x >= 0;
             o->p.front.max_hole_radius = x;
             break;
-        default:
+        case 12:
             ok = x > 0;
             o->p.smooth.spacing = x;
+            break;
+        default:
+            ok = x >= 0;
+            o->p.noise_ratio_max = x;
             break;
         }
         if (!ok) {

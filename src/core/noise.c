@@ -31,13 +31,19 @@
 
 #define SUBSAMPLE ((size_t)1 << 18)
 #define SEEDS 1024
+#define MIN_SEEDS 64 /* fewer seeds with a slab: no estimate */
 #define BALL 1024    /* the largest ball */
 #define K_MIN 64     /* the smallest */
-#define CYLINDER 96  /* C, at most half the ball */
+#define CYLINDER 48  /* C, at most half the ball */
 #define MIN_FIT 24   /* fewer points in a cylinder: no estimate there */
-#define SLAB 4.0
-/* A subsample is coarse enough when this share of the seeds see a slab. */
-#define SLAB_SHARE 0.5
+#define SLAB 3.0
+
+/* Points beyond TRIM residual standard deviations are left out of the
+ * next fit, at most TRIM_ROUNDS times; a Gaussian within +-3 sigma keeps
+ * TRIM_VARIANCE of its variance. */
+#define TRIM 3.0
+#define TRIM_ROUNDS 6
+#define TRIM_VARIANCE 0.97334
 
 static uint64_t mix64(uint64_t z)
 {
@@ -108,7 +114,7 @@ static bool solve6(double a[6][6], double b[6], double x[6])
  * squared radius rho2 about the seed q, in the tangent frame of the first
  * k neighbours idx[] (PCA). False with fewer than MIN_FIT points in it. */
 static bool cylinder_fit(const float *xyz, const float q[3], const uint32_t *idx, size_t k,
-                         double rho2, double *work, double *var)
+                         double rho2, double *work, double *var, size_t *inliers)
 {
     double c[3] = {0.0, 0.0, 0.0}, m[9] = {0};
     for (size_t i = 0; i < k; i++)
@@ -136,33 +142,59 @@ static bool cylinder_fit(const float *xyz, const float q[3], const uint32_t *idx
         double u = tsl_dot(d, e[0]), t = tsl_dot(d, e[1]);
         if (u * u + t * t > rho2)
             continue;
-        work[3 * n] = u;
-        work[3 * n + 1] = t;
-        work[3 * n + 2] = tsl_dot(d, e[2]);
+        work[4 * n] = u;
+        work[4 * n + 1] = t;
+        work[4 * n + 2] = tsl_dot(d, e[2]);
+        work[4 * n + 3] = 0.0; /* squared residual of the last fit */
         n++;
     }
     if (n < MIN_FIT)
         return false;
-    /* Least squares in scaled coordinates (u, v in units of rho). */
-    double s = 1.0 / sqrt(rho2), A[6][6] = {{0}}, B[6] = {0}, x[6];
-    for (size_t i = 0; i < n; i++) {
-        double u = work[3 * i] * s, t = work[3 * i + 1] * s, z = work[3 * i + 2];
-        double f[6] = {1.0, u, t, u * u, u * t, t * t};
-        for (int a = 0; a < 6; a++) {
-            for (int b = 0; b < 6; b++)
-                A[a][b] += f[a] * f[b];
-            B[a] += f[a] * z;
+    /* Least squares in scaled coordinates (u, v in units of rho), then
+     * again without the points beyond TRIM residuals (another sheet within
+     * the ball: the far wall of a thin tube), until none is dropped. */
+    double s = 1.0 / sqrt(rho2), limit2 = INFINITY, sigma2 = 0.0;
+    size_t kept = n;
+    for (int round = 0; round < TRIM_ROUNDS; round++) {
+        double A[6][6] = {{0}}, B[6] = {0}, x[6];
+        size_t used = 0;
+        for (size_t i = 0; i < n; i++) {
+            double u = work[4 * i] * s, t = work[4 * i + 1] * s, z = work[4 * i + 2];
+            if (work[4 * i + 3] > limit2)
+                continue;
+            double f[6] = {1.0, u, t, u * u, u * t, t * t};
+            for (int a = 0; a < 6; a++) {
+                for (int b = 0; b < 6; b++)
+                    A[a][b] += f[a] * f[b];
+                B[a] += f[a] * z;
+            }
+            used++;
         }
+        if (used < MIN_FIT || !solve6(A, B, x))
+            return false;
+        double rss = 0.0;
+        size_t within = 0;
+        for (size_t i = 0; i < n; i++) {
+            double u = work[4 * i] * s, t = work[4 * i + 1] * s, z = work[4 * i + 2];
+            double r = z - (x[0] + x[1] * u + x[2] * t + x[3] * u * u + x[4] * u * t +
+                            x[5] * t * t);
+            bool in = work[4 * i + 3] <= limit2;
+            work[4 * i + 3] = r * r;
+            if (in)
+                rss += r * r;
+        }
+        /* A fit on the points within +-TRIM sigma sees TRIM_VARIANCE of
+         * the variance. */
+        sigma2 = rss / (double)(used - 6) / (round ? TRIM_VARIANCE : 1.0);
+        limit2 = TRIM * TRIM * sigma2;
+        for (size_t i = 0; i < n; i++)
+            within += work[4 * i + 3] <= limit2;
+        if (round && within == kept)
+            break;
+        kept = within;
     }
-    if (!solve6(A, B, x))
-        return false;
-    double rss = 0.0;
-    for (size_t i = 0; i < n; i++) {
-        double u = work[3 * i] * s, t = work[3 * i + 1] * s, z = work[3 * i + 2];
-        double r = z - (x[0] + x[1] * u + x[2] * t + x[3] * u * u + x[4] * u * t + x[5] * t * t);
-        rss += r * r;
-    }
-    *var = rss / (double)(n - 6);
+    *var = sigma2;
+    *inliers = kept;
     return true;
 }
 
@@ -171,28 +203,35 @@ static bool cylinder_fit(const float *xyz, const float q[3], const uint32_t *idx
  * variance there, *radius the ball's radius, *count its points, *slab
  * whether it reaches above the noise (else the largest ball's figures).
  * False when it has too few neighbours or points. */
-static bool seed_estimate(const tessel_index *ix, const float *xyz, const float q[3], size_t k,
-                          uint32_t *idx, float *d2, double *work, double *var, double *radius,
-                          size_t *count, bool *slab)
+enum { SEED_NONE, SEED_NOISY, SEED_SLAB };
+
+/* One seed's estimate at the smallest ball (K_MIN, 2 K_MIN, ... k nearest)
+ * whose cylinder reaches above the noise: *var and *density there.
+ * Returns SEED_SLAB, SEED_NOISY when no ball reaches above the noise, or
+ * SEED_NONE when it has too few neighbours. */
+static int seed_estimate(const tessel_index *ix, const float *xyz, const float q[3], size_t k,
+                         uint32_t *idx, float *d2, double *work, double *var, double *density)
 {
     if (tessel_index_knn(ix, q, k, idx, d2) < k)
-        return false;
-    bool any = false;
+        return SEED_NONE;
+    int why = SEED_NONE;
     for (size_t K = K_MIN; K <= k; K = 2 * K < k && 2 * K > K ? 2 * K : (K == k ? k + 1 : k)) {
         double R2 = (double)d2[K - 1];
-        size_t C = K / 2 < CYLINDER ? K / 2 : CYLINDER;
+        size_t C = K / 2 < CYLINDER ? K / 2 : CYLINDER, in;
         double rho2 = R2 * (double)C / (double)K, v;
-        if (!cylinder_fit(xyz, q, idx, K, rho2, work, &v))
+        if (!cylinder_fit(xyz, q, idx, K, rho2, work, &v, &in))
             continue;
-        any = true;
+        if (R2 - rho2 < SLAB * SLAB * v) {
+            why = SEED_NOISY;
+            continue;
+        }
         *var = v;
-        *radius = sqrt(R2);
-        *count = K;
-        *slab = R2 - rho2 >= SLAB * SLAB * v;
-        if (*slab)
-            break;
+        /* The surface's points in the cylinder (within +-TRIM sigma: all
+         * but 0.27%) over its cross-section. */
+        *density = (double)in / 0.9973 / (acos(-1.0) * rho2);
+        return SEED_SLAB;
     }
-    return any;
+    return why;
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -210,21 +249,23 @@ static double median(double *a, size_t n)
 
 /* The estimate on a subsample of xyz (m points): the medians of sigma^2
  * and of the density (points per area of their ball) over the seeds that
- * see a slab; *share the share that do. */
+ * see a slab (*used of them); *noisy: more seeds found no ball reaching
+ * above the noise than found a slab (a coarser subsample has wider
+ * balls). */
 static tessel_status estimate_on(const float *xyz, size_t m, int threads, double *sigma2,
-                                 double *density, size_t *used, double *share)
+                                 double *density, size_t *used, bool *noisy)
 {
-    *sigma2 = *density = *share = 0.0;
+    *sigma2 = *density = 0.0;
+    *noisy = false;
     *used = 0;
     size_t k = m - 1 < BALL ? m - 1 : BALL;
     size_t seeds = m < SEEDS ? m : SEEDS;
     tessel_index *ix = NULL;
     tessel_status st = tessel_index_build(&ix, xyz, m);
     double *var = tsl_alloc_array(seeds, sizeof *var);
-    double *rad = tsl_alloc_array(seeds, sizeof *rad);
     double *dens = tsl_alloc_array(seeds, sizeof *dens);
-    uint8_t *flag = tsl_calloc_array(seeds, 1); /* 1 estimated, 2 and a slab */
-    if (st == TESSEL_OK && (!var || !rad || !dens || !flag))
+    uint8_t *flag = tsl_calloc_array(seeds, 1); /* SEED_* */
+    if (st == TESSEL_OK && (!var || !dens || !flag))
         st = TESSEL_ERR_NOMEM;
     bool nomem = false;
     long long ns = (long long)seeds;
@@ -233,19 +274,14 @@ static tessel_status estimate_on(const float *xyz, size_t m, int threads, double
         {
             uint32_t *idx = tsl_alloc_array(k, sizeof *idx);
             float *d2 = tsl_alloc_array(k, sizeof *d2);
-            double *work = tsl_alloc_array(k, 3 * sizeof *work);
+            double *work = tsl_alloc_array(k, 4 * sizeof *work);
             nomem = !idx || !d2 || !work;
 #pragma omp for schedule(dynamic, 8)
             for (long long s = 0; s < ns; s++) {
                 if (nomem)
                     continue;
                 const float *q = xyz + 3 * (size_t)((double)s * (double)m / (double)seeds);
-                bool slab;
-                size_t K;
-                if (seed_estimate(ix, xyz, q, k, idx, d2, work, &var[s], &rad[s], &K, &slab)) {
-                    flag[s] = slab ? 2 : 1;
-                    dens[s] = (double)K / (acos(-1.0) * rad[s] * rad[s]);
-                }
+                flag[s] = (uint8_t)seed_estimate(ix, xyz, q, k, idx, d2, work, &var[s], &dens[s]);
             }
             free(idx);
             free(d2);
@@ -255,16 +291,16 @@ static tessel_status estimate_on(const float *xyz, size_t m, int threads, double
             st = TESSEL_ERR_NOMEM;
     }
     if (st == TESSEL_OK) {
-        size_t estimated = 0, n = 0;
+        size_t noise_bound = 0, n = 0;
         for (size_t s = 0; s < seeds; s++) {
-            estimated += flag[s] != 0;
-            if (flag[s] == 2) {
+            noise_bound += flag[s] == SEED_NOISY;
+            if (flag[s] == SEED_SLAB) {
                 var[n] = var[s];
                 dens[n] = dens[s];
                 n++;
             }
         }
-        *share = estimated ? (double)n / (double)estimated : 0.0;
+        *noisy = noise_bound > n;
         *used = n;
         if (n) {
             *sigma2 = median(var, n);
@@ -273,7 +309,6 @@ static tessel_status estimate_on(const float *xyz, size_t m, int threads, double
     }
     tessel_index_destroy(ix);
     free(var);
-    free(rad);
     free(dens);
     free(flag);
     return st;
@@ -288,23 +323,24 @@ tessel_status tessel_cloud_noise(const tessel_cloud *cloud, int threads,
     if (cloud->count < 2 * MIN_FIT)
         return TESSEL_ERR_TOO_FEW_POINTS;
     tessel_status st = TESSEL_OK;
-    double sigma2 = 0.0, density = 0.0, share = 0.0;
+    double sigma2 = 0.0, density = 0.0;
+    bool noisy = false;
     size_t want = SUBSAMPLE, m = 0, used = 0;
     for (;;) {
         float *xyz = subsample(cloud, want, &m);
         if (!xyz)
             return TESSEL_ERR_NOMEM;
-        st = m > 2 * MIN_FIT ? estimate_on(xyz, m, threads, &sigma2, &density, &used, &share)
+        st = m > 2 * MIN_FIT ? estimate_on(xyz, m, threads, &sigma2, &density, &used, &noisy)
                              : TESSEL_ERR_TOO_FEW_POINTS;
         free(xyz);
         if (st != TESSEL_OK)
             return st;
         /* Coarser while most balls stay inside the noise. */
-        if (share >= SLAB_SHARE || want / 4 < 4 * BALL)
+        if (!noisy || want / 4 < 4 * BALL)
             break;
         want = (m < want ? m : want) / 4;
     }
-    if (!used)
+    if (used < MIN_SEEDS)
         return TESSEL_ERR_TOO_FEW_POINTS;
     out->sigma = sqrt(sigma2);
     out->samples = used;
