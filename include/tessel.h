@@ -1394,6 +1394,72 @@ TESSEL_API tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
                                                    tessel_mesh *mesh,
                                                    tessel_smooth_recon_stats *stats);
 
+/* ------------------------------------------------------------------------ */
+/* One entry point for every method (src/reconstruct/)                      */
+/* ------------------------------------------------------------------------ */
+
+typedef enum tessel_method {
+    TESSEL_METHOD_AUTO = 0,    /* chosen from the cloud: tessel_choose_method */
+    TESSEL_METHOD_GREEDY,      /* greedy projection: interpolates clean clouds */
+    TESSEL_METHOD_SMOOTH,      /* the noisy-cloud pipeline: approximates */
+    TESSEL_METHOD_FIXED_PLANE  /* height, range or grid mode (fixed.mode) */
+} tessel_method;
+TESSEL_API const char *tessel_method_name(tessel_method method);
+
+typedef struct tessel_reconstruct_params {
+    tessel_method method;               /* default AUTO */
+    double clean_below;                 /* AUTO: noise below this many surface
+                                           spacings (tessel_cloud_noise) is
+                                           clean and goes to greedy
+                                           projection, the rest to the
+                                           smooth method; default 0.3 */
+    tessel_greedy_params greedy;        /* defaults of each method */
+    tessel_smooth_recon_params smooth;
+    tessel_fixed_plane_params fixed;    /* mode: default RANGE (what AUTO picks
+                                           for organized scans with a viewpoint) */
+    int threads;                        /* every method's when not 0 */
+} tessel_reconstruct_params;
+TESSEL_API tessel_reconstruct_params tessel_reconstruct_params_default(void);
+
+/* Which method and why. */
+typedef struct tessel_method_choice {
+    tessel_method method;          /* never AUTO */
+    tessel_fixed_plane_mode mode;  /* for FIXED_PLANE */
+    const char *reason;            /* a static string */
+    int measured;                  /* 1: the noise was measured */
+    double noise, noise_ratio;     /* then: world units, surface spacings */
+    double seconds;                /* spent measuring */
+} tessel_method_choice;
+
+/* The method tessel_reconstruct would run on cloud with params (NULL:
+ * defaults): params->method when it is not AUTO; else the range mode for
+ * an organized cloud with a viewpoint; else greedy projection when the
+ * noise is below params->clean_below surface spacings (or cannot be
+ * measured), the smooth method above. */
+TESSEL_API tessel_status tessel_choose_method(const tessel_cloud *cloud,
+                                              const tessel_reconstruct_params *params,
+                                              tessel_method_choice *choice);
+
+typedef struct tessel_reconstruct_summary {
+    tessel_method_choice choice;
+    size_t vertices, triangles;
+    size_t boundary_edges;     /* greedy and smooth; 0 for the fixed plane */
+    size_t components;         /* greedy; 0 otherwise */
+    double seconds;            /* choice and reconstruction */
+    tessel_recon_summary greedy;        /* the method's own figures */
+    tessel_smooth_recon_stats smooth;
+    tessel_fixed_plane_stats fixed;
+} tessel_reconstruct_summary;
+
+/* Reconstructs a mesh from cloud with the method params ask for or the one
+ * tessel_choose_method picks (params NULL: AUTO). *mesh gets the result (as
+ * the method's own _mesh call gives it); summary (may be NULL) says which
+ * method ran and why, and its figures. On error *mesh is zeroed. */
+TESSEL_API tessel_status tessel_reconstruct(const tessel_cloud *cloud,
+                                            const tessel_reconstruct_params *params,
+                                            const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                            tessel_reconstruct_summary *summary);
+
 #ifdef __cplusplus
 }
 #endif

@@ -331,6 +331,51 @@ static void test_sample(void)
     unlink(out);
 }
 
+/* tessel reconstruct without --method: the summary says which method the
+ * cloud got and why; an unknown method is a usage error. */
+static void test_reconstruct_auto(void)
+{
+    tessel_cloud c;
+    const size_t n = 20000;
+    CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+    const double golden = 2.399963229728653;
+    for (size_t i = 0; i < n; i++) {
+        double z = 1.0 - 2.0 * ((double)i + 0.5) / (double)n, r = sqrt(1 - z * z);
+        c.xyz[3 * i] = (float)(r * cos(golden * (double)i));
+        c.xyz[3 * i + 1] = (float)(r * sin(golden * (double)i));
+        c.xyz[3 * i + 2] = (float)z;
+    }
+    char in[512], out[512], args[2048];
+    snprintf(in, sizeof in, "%s/keep_auto.ply", tmpdir);
+    snprintf(out, sizeof out, "%s/keep_auto_out.ply", tmpdir);
+    CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
+    snprintf(args, sizeof args, "reconstruct %s %s --json", in, out);
+    CHECK(run(args) == 0);
+    const char *o = slurp("out.txt");
+    CHECK_MSG(strstr(o, "\"method\": \"greedy\"") && strstr(o, "\"chosen_by\": \"auto\"") &&
+                  strstr(o, "clean"),
+              "clean sphere: %s", o);
+    /* Radial noise of about one spacing: the smooth method. */
+    uint64_t x = 12345;
+    for (size_t i = 0; i < n; i++) {
+        x = x * 6364136223846793005ULL + 1442695040888963407ULL;
+        double u = (double)(x >> 11) * 0x1.0p-53 - 0.5;
+        for (int k = 0; k < 3; k++)
+            c.xyz[3 * i + k] *= (float)(1.0 + 0.05 * u);
+    }
+    CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
+    CHECK(run(args) == 0);
+    o = slurp("out.txt");
+    CHECK_MSG(strstr(o, "\"method\": \"smooth\"") && strstr(o, "noisy"), "noisy sphere: %s", o);
+    snprintf(args, sizeof args, "reconstruct %s %s", in, out);
+    CHECK(run(args) == 0 && strstr(slurp("err.txt"), "method smooth (auto)"));
+    snprintf(args, sizeof args, "reconstruct %s %s --method magic", in, out);
+    CHECK(run(args) == 1 && strstr(slurp("err.txt"), "auto, greedy or smooth"));
+    tessel_cloud_free(&c);
+    unlink(in);
+    unlink(out);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/tessel_test_cli_XXXXXX");
@@ -345,6 +390,7 @@ int main(void)
     test_smooth();
     test_dropped_points();
     test_sample();
+    test_reconstruct_auto();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
     if (system(cmd) != 0)

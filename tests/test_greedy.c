@@ -833,12 +833,13 @@ static void test_touching_spheres(void)
     tessel_cloud_free(&c);
 }
 
-/* Runs tessel reconstruct args; its messages go to log (NULL: nowhere). */
+/* Runs tessel reconstruct --method greedy args; its messages go to log
+ * (NULL: nowhere). */
 static int run_cli_log(const char *args, const char *log)
 {
     char cmd[2048];
-    snprintf(cmd, sizeof cmd, "\"%s\" reconstruct %s > /dev/null 2>%s", TESSEL_CLI, args,
-             log ? log : "&1");
+    snprintf(cmd, sizeof cmd, "\"%s\" reconstruct --method greedy %s > /dev/null 2>%s",
+             TESSEL_CLI, args, log ? log : "&1");
     int rc = system(cmd);
     return rc != -1 && WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
 }

@@ -59,11 +59,66 @@ int cli_exit_for_read(tessel_status status)
     return CLI_INPUT_ERROR;
 }
 
+/* The cloud reconstruct read to choose its method (one process, one
+ * command: a plain static is enough). */
+static struct {
+    const char *path;
+    tessel_cloud cloud;
+    int loaded, chosen;
+    tessel_method_choice choice;
+} preload;
+
+void cli_preload_cloud(const char *path, tessel_cloud *cloud, const tessel_method_choice *choice)
+{
+    preload.path = path;
+    preload.cloud = *cloud;
+    memset(cloud, 0, sizeof *cloud);
+    preload.loaded = 1;
+    preload.chosen = 1;
+    preload.choice = *choice;
+}
+
+void cli_chosen_json_end(void)
+{
+    if (preload.chosen) {
+        const tessel_method_choice *c = &preload.choice;
+        printf(", \"chosen_by\": \"auto\", \"reason\": ");
+        cli_json_string(stdout, c->reason);
+        if (c->measured)
+            printf(", \"measured_noise\": %.9g, \"measured_noise_ratio\": %.6g, "
+                   "\"choice_seconds\": %.6f",
+                   c->noise, c->noise_ratio, c->seconds);
+    }
+    printf("}\n");
+}
+
+void cli_chosen_text(void)
+{
+    if (!preload.chosen)
+        return;
+    const tessel_method_choice *c = &preload.choice;
+    const char *name = c->method == TESSEL_METHOD_FIXED_PLANE ? "range mode"
+                                                              : tessel_method_name(c->method);
+    if (c->measured)
+        fprintf(stderr,
+                "tessel: method %s (auto): noise %.4g = %.2f surface spacings: %s\n", name,
+                c->noise, c->noise_ratio, c->reason);
+    else
+        fprintf(stderr, "tessel: method %s (auto): %s\n", name, c->reason);
+}
+
 int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what,
                    const cli_common *common)
 {
     tessel_diag diag = {0};
-    tessel_status st = tessel_cloud_read(cloud, path, NULL, &diag);
+    tessel_status st = TESSEL_OK;
+    if (preload.loaded && strcmp(path, preload.path) == 0) {
+        *cloud = preload.cloud;
+        memset(&preload.cloud, 0, sizeof preload.cloud);
+        preload.loaded = 0;
+    } else {
+        st = tessel_cloud_read(cloud, path, NULL, &diag);
+    }
     if (st != TESSEL_OK) {
         cli_error_status(st, &diag, path);
         return cli_exit_for_read(st);

@@ -45,6 +45,17 @@ int cli_exit_for_write(tessel_status status);
  * reader dropped) and frees the cloud. Points the reader dropped (a
  * coordinate NaN, infinite or beyond 1e15) get a warning unless
  * common->quiet. Returns CLI_OK or the exit code. */
+/* Hands a cloud already read (by reconstruct's method choice) to the
+ * command it runs: the next cli_read_cloud of the same path takes it
+ * instead of reading the file again, and the summaries say which method
+ * was chosen and why (cli_chosen_*). */
+void cli_preload_cloud(const char *path, tessel_cloud *cloud, const tessel_method_choice *choice);
+/* The JSON summary's end: the chosen method's fields (when the method was
+ * chosen) and the closing brace and newline. */
+void cli_chosen_json_end(void);
+/* One line on stderr saying which method was chosen and why (nothing
+ * unless one was). */
+void cli_chosen_text(void);
 int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what,
                    const cli_common *common);
 

@@ -110,6 +110,16 @@ static int fixed_option(void *ctx, int argc, char **argv, int *i)
         o->mode_given = 1;
         return 1;
     }
+    if (strcmp(a, "--method") == 0) {
+        /* --method auto chose this mode. */
+        if (!(v = cli_option_value(argc, argv, i)))
+            return -1;
+        if (strcmp(v, "auto") != 0) {
+            cli_error("--method %s and --mode do not go together", v);
+            return -1;
+        }
+        return 1;
+    }
     if (strcmp(a, "--axis") == 0) {
         if (!(v = cli_option_value(argc, argv, i)))
             return -1;
@@ -267,7 +277,7 @@ int cmd_reconstruct_fixed(int argc, char **argv)
                "\"cells\": %zu, \"cells_missing\": %zu, \"cells_open\": %zu, "
                "\"triangles_folded\": %zu, \"triangles_nonmanifold\": %zu, "
                "\"poles_closed\": %d, \"triangles\": %zu, \"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
-               "\"dexel_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f}\n",
+               "\"dexel_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f",
                mode_name(fs.mode), n, fs.representatives, fs.dexels_filled, fs.columns, fs.rows,
                cu, cv, fs.wrap_columns, fs.wrap_rows, fs.axis[0], fs.axis[1], fs.axis[2],
                fs.viewpoint[0], fs.viewpoint[1], fs.viewpoint[2], fs.noise, fs.noise_estimated,
@@ -275,7 +285,9 @@ int cmd_reconstruct_fixed(int argc, char **argv)
                fs.triangles_folded, fs.triangles_nonmanifold, fs.poles_closed, fs.triangles,
                t_read, fs.seconds,
                fs.seconds_dexels, t_write, seconds);
+        cli_chosen_json_end();
     } else if (!common.quiet) {
+        cli_chosen_text();
         fprintf(stderr, "tessel: %s mode: %zu points, %u x %u %s", mode_name(fs.mode), n,
                 fs.columns, fs.rows, fs.mode == TESSEL_FIXED_PLANE_GRID ? "grid" : "dexels");
         if (fs.mode == TESSEL_FIXED_PLANE_HEIGHT)

@@ -117,7 +117,7 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
     if (strcmp(a, "--method") == 0) {
         if (!(v = cli_option_value(argc, argv, i)))
             return -1;
-        if (strcmp(v, "smooth") != 0) {
+        if (strcmp(v, "smooth") != 0 && strcmp(v, "auto") != 0) {
             cli_error("--method %s is not this method's (smooth)", v);
             return -1;
         }
@@ -283,7 +283,7 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                "\"smooth_seconds\": %.6f, "
                "\"simplify_seconds\": %.6f, \"front_seconds\": %.6f, "
                "\"refine_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
-               "\"write_seconds\": %.6f, \"seconds\": %.6f}\n",
+               "\"write_seconds\": %.6f, \"seconds\": %.6f",
                n, s.noise, s.noise_ratio, s.points_used, s.spacing, s.cluster_diameter,
                s.representatives, s.vertices, s.triangles,
                s.border_edges,
@@ -292,7 +292,9 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                s.refine.flips, t_read, s.seconds_noise, s.seconds_spacing, s.seconds_smooth,
                s.seconds_simplify, s.seconds_front, s.seconds_refine, s.seconds_total,
                t_write, seconds);
+        cli_chosen_json_end();
     } else if (!common.quiet) {
+        cli_chosen_text();
         if (s.points_used < n)
             fprintf(stderr,
                     "tessel: noise %.4g = %.2f surface spacings: thinned to %zu points "
