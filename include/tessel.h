@@ -488,6 +488,11 @@ typedef struct tessel_mesh_report {
                                        harmonic mean */
     double tau;                     /* absolute threshold used */
     double reference_bbox_diagonal;
+    double normal_consistency;      /* mean |cos| of the angle between the
+                                       mesh's normal at each of its samples
+                                       and the reference's at the nearest
+                                       point (1: parallel everywhere) */
+    double normal_consistency_ref;  /* the same from the reference's samples */
 } tessel_mesh_report;
 
 /* Measures a mesh (params may be NULL for defaults). Returns TESSEL_OK

@@ -118,6 +118,8 @@ static void print_json(const char *mesh, const char *input, const char *ref,
         json_num("precision", r->precision);
         json_num("recall", r->recall);
         json_num("fscore", r->fscore);
+        json_num("normal_consistency", r->normal_consistency);
+        json_num("normal_consistency_ref_to_out", r->normal_consistency_ref);
     }
     json_num("seconds", secs);
     printf("\n}\n");
@@ -189,6 +191,8 @@ static void print_text(const char *mesh, const char *input, const char *ref,
         printf("hausdorff           %.6g (%.4f%%)\n", r->hausdorff, 100.0 * r->hausdorff / d);
         printf("f-score             %.2f%% at tau %.6g (precision %.2f%%, recall %.2f%%)\n",
                r->fscore, r->tau, r->precision, r->recall);
+        printf("normal consistency  %.4f (mesh->ref), %.4f (ref->mesh)\n", r->normal_consistency,
+               r->normal_consistency_ref);
     }
     printf("valid manifold      %s\n", yes_no(tessel_mesh_report_valid(r)));
     printf("time                %.3f s\n", secs);

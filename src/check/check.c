@@ -575,6 +575,7 @@ tessel_status tessel_mesh_check(const tessel_mesh *mesh, const tessel_check_para
     r.input_bbox_diagonal = NAN;
     r.chamfer = r.hausdorff = r.accuracy = r.completeness = NAN;
     r.precision = r.recall = r.fscore = r.tau = r.reference_bbox_diagonal = NAN;
+    r.normal_consistency = r.normal_consistency_ref = NAN;
     if (mesh->vertex_count > 0 && !mesh->xyz)
         return TESSEL_ERR_INVALID_ARG;
     int threads = tsl_threads(p.threads);

@@ -411,9 +411,11 @@ fail:
  * upper bound of the distance known beforehand (INFINITY if none): subtrees
  * farther than it are never opened. The result is the smallest computed
  * triangle distance either way. */
-static double surface_distance(const surface *s, const double q[3], double bound)
+static double surface_distance(const surface *s, const double q[3], double bound,
+                               uint32_t *face)
 {
     double best = INFINITY;
+    uint32_t nearest = 0;
     if (bound < INFINITY) {
         double b = bound * (1.0 + 1e-9) + s->slack; /* rounding of the bound */
         best = b * b;
@@ -432,6 +434,7 @@ static double surface_distance(const surface *s, const double q[3], double bound
                 double d2 = point_triangle_dist2(q, t, t + 3, t + 6);
                 if (d2 < best) {
                     best = d2;
+                    nearest = s->tree.order[i];
                     found = true;
                 }
             }
@@ -453,7 +456,9 @@ static double surface_distance(const surface *s, const double q[3], double bound
         }
     }
     if (!found && bound < INFINITY)
-        return surface_distance(s, q, INFINITY); /* a bound that was too tight */
+        return surface_distance(s, q, INFINITY, face); /* a bound that was too tight */
+    if (face)
+        *face = nearest;
     return sqrt(best);
 }
 
@@ -490,7 +495,7 @@ static inline bool query_get(const query_points *qp, size_t i, double q[3])
  * queries hard. Blocks do not depend on the thread count, so neither do
  * the results. */
 static tessel_status surface_distances(const surface *s, const query_points *qp, double *d,
-                                       int threads)
+                                       uint32_t *face, int threads)
 {
     size_t n = qp->count;
     if (n == 0)
@@ -550,7 +555,7 @@ static tessel_status surface_distances(const surface *s, const query_points *qp,
             double step[3];
             tsl_sub(q, prev, step);
             double bound = prev_d < INFINITY ? prev_d + tsl_norm(step) : INFINITY;
-            d[i] = surface_distance(s, q, bound);
+            d[i] = surface_distance(s, q, bound, face ? &face[i] : NULL);
             prev[0] = q[0], prev[1] = q[1], prev[2] = q[2];
             prev_d = d[i];
         }
@@ -599,8 +604,10 @@ static inline double mt64_unit(mt64 *g)
     return (double)(mt64_next(g) >> 11) * (1.0 / 9007199254740992.0);
 }
 
-/* n points uniformly distributed by area over s (n*3 doubles). */
-static void surface_sample(const surface *s, size_t n, uint64_t seed, double *pts)
+/* n points uniformly distributed by area over s (n*3 doubles), and the
+ * triangle each lies on. */
+static void surface_sample(const surface *s, size_t n, uint64_t seed, double *pts,
+                           uint32_t *face)
 {
     mt64 g;
     mt64_seed(&g, seed);
@@ -619,6 +626,7 @@ static void surface_sample(const surface *s, size_t n, uint64_t seed, double *pt
         if (lo >= s->count)
             lo = s->count - 1;
         const double *t = s->tri + 9 * lo;
+        face[i] = (uint32_t)lo;
         double su = sqrt(mt64_unit(&g)), r = mt64_unit(&g);
         double wa = 1.0 - su, wb = su * (1.0 - r), wc = su * r;
         for (int d = 0; d < 3; d++)
@@ -629,48 +637,64 @@ static void surface_sample(const surface *s, size_t n, uint64_t seed, double *pt
 /* Mean and max distance from n samples of `from` to `to`, and the share
  * (percent) closer than tau. */
 typedef struct dir_stats {
-    double mean, max, pct_within;
+    double mean, max, pct_within, normal_cos;
 } dir_stats;
 
+/* Unit normal of triangle t of s. */
+static void face_normal(const surface *s, uint32_t t, double n[3])
+{
+    const double *p = s->tri + 9 * (size_t)t;
+    double u[3], v[3];
+    tsl_sub(p + 3, p, u);
+    tsl_sub(p + 6, p, v);
+    tsl_cross(u, v, n);
+    tsl_normalize(n);
+}
+
+/* Mean and max distance from n samples of `from` to `to`, the share
+ * (percent) closer than tau, and the mean |cos| between each sample's
+ * normal and the normal of the nearest triangle of `to`. */
 static tessel_status directed(const surface *from, const surface *to, size_t n, uint64_t seed,
                               double tau, int threads, dir_stats *out)
 {
-    out->mean = out->max = out->pct_within = NAN;
+    out->mean = out->max = out->pct_within = out->normal_cos = NAN;
     if (from->count == 0 || to->count == 0 || n == 0 || !(from->cum[from->count - 1] > 0.0))
         return TESSEL_OK;
     double *pts = tsl_alloc_array(n, 3 * sizeof *pts);
     double *d = tsl_alloc_array(n, sizeof *d);
-    if (!pts || !d) {
-        free(pts);
-        free(d);
-        return TESSEL_ERR_NOMEM;
-    }
-    surface_sample(from, n, seed, pts);
+    uint32_t *src = tsl_alloc_array(n, sizeof *src);
+    uint32_t *dst = tsl_alloc_array(n, sizeof *dst);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!pts || !d || !src || !dst)
+        goto done;
+    surface_sample(from, n, seed, pts, src);
     query_points qp = {n, pts, NULL, {0, 0, 0}};
-    tessel_status st = surface_distances(to, &qp, d, threads);
-    if (st != TESSEL_OK) {
-        free(pts);
-        free(d);
-        return st;
-    }
-    double sum = 0.0, mx = 0.0;
+    if ((st = surface_distances(to, &qp, d, dst, threads)) != TESSEL_OK)
+        goto done;
+    double sum = 0.0, mx = 0.0, cos_sum = 0.0;
     size_t within = 0;
     for (size_t i = 0; i < n; i++) {
         sum += d[i];
         if (d[i] > mx)
             mx = d[i];
         within += d[i] < tau;
+        double a[3], b[3];
+        face_normal(from, src[i], a);
+        face_normal(to, dst[i], b);
+        cos_sum += fabs(tsl_dot(a, b));
     }
     out->mean = sum / (double)n;
     out->max = mx;
     out->pct_within = 100.0 * (double)within / (double)n;
+    out->normal_cos = cos_sum / (double)n;
+done:
     free(pts);
     free(d);
-    return TESSEL_OK;
+    free(src);
+    free(dst);
+    return st;
 }
 
-/* Counts intersecting pairs of non-degenerate triangles and the triangles
- * in at least one such pair. */
 tessel_status tsl_check_self_intersections(const tessel_mesh *m, const uint8_t *kind, int threads,
                                         size_t *pairs_out, size_t *faces_out)
 {
@@ -841,7 +865,7 @@ tessel_status tsl_check_input_figures(const tessel_mesh *m, const surface *s,
         goto done;
     if (s->count > 0) {
         query_points qp = {np, NULL, cloud->xyz, {shift[0], shift[1], shift[2]}};
-        st = surface_distances(s, &qp, d, threads);
+        st = surface_distances(s, &qp, d, NULL, threads);
         if (st != TESSEL_OK)
             goto done;
     }
@@ -952,5 +976,7 @@ tessel_status tsl_check_reference_figures(const tessel_mesh *m, const surface *o
     r->precision = prec;
     r->recall = rec;
     r->fscore = empty ? 0.0 : (prec + rec > 0.0 ? 2.0 * prec * rec / (prec + rec) : 0.0);
+    r->normal_consistency = o2r.normal_cos;
+    r->normal_consistency_ref = empty ? NAN : r2o.normal_cos;
     return TESSEL_OK;
 }
