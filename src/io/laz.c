@@ -86,6 +86,9 @@ static double rdf64(const uint8_t *p)
     return d;
 }
 
+/* Where the header keeps the point count it announced. */
+static uint64_t count_field(const tsl_las_header *h) { return h->minor >= 4 ? 247 : 107; }
+
 /* ---- byte access: memory or file ---- */
 
 /* [offset, offset + len) of the file, or NULL (diag set) when it is not
@@ -278,7 +281,8 @@ static tessel_status laz_sequential_chunks(tsl_laz *z, uint64_t start, tessel_di
     uint64_t cs = z->info.chunk_size == UINT32_MAX ? (n ? n : 1) : z->info.chunk_size;
     uint64_t chunks = (n + cs - 1) / cs;
     if (chunks > SIZE_MAX / sizeof(uint64_t) - 1) {
-        tsl_diag_set(diag, z->name, 0, 1, 107, "LAZ file announces %llu points",
+        tsl_diag_set(diag, z->name, 0, 1, count_field(&z->info.header),
+                     "LAZ file announces %llu points",
                      (unsigned long long)n);
         return TESSEL_ERR_PARSE;
     }
@@ -450,7 +454,7 @@ static tessel_status laz_setup_chunks(tsl_laz *z, tessel_diag *diag)
     if (z->info.compressor == 1) {
         z->chunks_start = h->point_offset;
         if (n > 1 + (uint64_t)LAZ_MAX_POINTS_PER_BYTE * (z->region_end - z->chunks_start)) {
-            tsl_diag_set(diag, z->name, 0, 1, 107,
+            tsl_diag_set(diag, z->name, 0, 1, count_field(h),
                          "LAZ header announces %llu points in %llu bytes of point data",
                          (unsigned long long)n,
                          (unsigned long long)(z->region_end - z->chunks_start));
@@ -498,7 +502,7 @@ static tessel_status laz_setup_chunks(tsl_laz *z, tessel_diag *diag)
         if (variable)
             return st; /* diag says why: variable chunks need the table */
         if (n > 1 + (uint64_t)LAZ_MAX_POINTS_PER_BYTE * (z->region_end - z->chunks_start)) {
-            tsl_diag_set(diag, z->name, 0, 1, 107,
+            tsl_diag_set(diag, z->name, 0, 1, count_field(h),
                          "LAZ header announces %llu points in %llu bytes of point data",
                          (unsigned long long)n,
                          (unsigned long long)(z->region_end - z->chunks_start));
@@ -947,7 +951,7 @@ tessel_status tsl_laz_parse(const uint8_t *data, size_t size, const char *name,
         return st;
     const tsl_las_header *zh = &z->info.header;
     if (zh->count > b->max_points) {
-        tsl_diag_set(diag, name, 0, 1, zh->minor >= 4 ? 247 : 107,
+        tsl_diag_set(diag, name, 0, 1, count_field(zh),
                      "LAS file has %llu points, above the limit of %llu",
                      (unsigned long long)zh->count, (unsigned long long)b->max_points);
         tsl_laz_close(z);

@@ -31,6 +31,12 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#if defined(__GNUC__)
+#define LAZ_INLINE static inline __attribute__((always_inline))
+#else
+#define LAZ_INLINE static inline
+#endif
+
 enum {
     LAZ_FAIL_DATA = 1,     /* the stream ended before the points did */
     LAZ_FAIL_CORRUPT = 2,  /* a value the encoder cannot have written */
@@ -110,7 +116,7 @@ static inline void laz_renorm(laz_dec *d)
     } while ((d->length <<= 8) < LAZ_MIN_LENGTH);
 }
 
-static inline uint32_t laz_decode_bit(laz_dec *d, laz_bitmodel *m)
+LAZ_INLINE uint32_t laz_decode_bit(laz_dec *d, laz_bitmodel *m)
 {
     uint32_t x = m->bit_0_prob * (d->length >> LAZ_BM_SHIFT);
     uint32_t sym = d->value >= x;
@@ -128,7 +134,7 @@ static inline uint32_t laz_decode_bit(laz_dec *d, laz_bitmodel *m)
     return sym;
 }
 
-static inline uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
+LAZ_INLINE uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
 {
     uint32_t n, sym, x, y = d->length;
     if (m->table) {
@@ -140,10 +146,9 @@ static inline uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
         n = m->table[t + 1] + 1;
         while (n > sym + 1) { /* bisection between the table's bounds */
             uint32_t k = (sym + n) >> 1;
-            if (m->dist[k] > dv)
-                n = k;
-            else
-                sym = k;
+            int above = m->dist[k] > dv; /* branch-free: the outcome is data */
+            n = above ? k : n;
+            sym = above ? sym : k;
         }
         x = m->dist[sym] * d->length;
         if (sym != m->last_symbol)
@@ -232,7 +237,7 @@ static inline int32_t laz_i32(uint32_t u)
     return u <= 0x7FFFFFFFu ? (int32_t)u : -(int32_t)(~u) - 1;
 }
 
-static inline int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
+LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
 {
     uint32_t k = laz_decode_symbol(d, &ic->mbits[context]);
     ic->k = k;
@@ -257,7 +262,7 @@ static inline int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
 
 /* The value predicted by pred, in [0, 2^bits) for bits < 32 (callers cast),
  * any int32 for 32 bits. Sums wrap as the reference's do. */
-static inline int32_t laz_ic_decompress(laz_ic *ic, laz_dec *d, int32_t pred,
+LAZ_INLINE int32_t laz_ic_decompress(laz_ic *ic, laz_dec *d, int32_t pred,
                                         uint32_t context)
 {
     uint32_t real = (uint32_t)pred + (uint32_t)laz_ic_corrector(ic, d, context);

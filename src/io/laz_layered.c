@@ -19,12 +19,13 @@
  * return and whether its GPS time changed) says whether the channel, the
  * point source, the GPS time, the scan angle, the number of returns and the
  * return number changed. Versions 3 and 4 differ in the context the other
- * items use: v3 passes the channel only on points where it changed (0
- * otherwise, as the reference's per-point context variable starts at 0), v4
- * always the current channel. When an item switches to a channel it has
- * used before, the reference predicts that point from the last value of the
- * channel it switched from (its `last_item` pointer is only refreshed for a
- * new channel); this is kept, since the encoder does the same. */
+ * items use, and in what they predict from after a switch: v3 passes the
+ * channel only on points where it changed (0 otherwise, as the reference's
+ * per-point context variable starts at 0), and an item switching to a
+ * channel it has used before predicts that point from the last value of the
+ * channel it switched from (the reference refreshes its `last_item` pointer
+ * only for a new channel; the encoder does the same, so this is kept). v4
+ * passes the current channel always and predicts from it. */
 #include "io/laz_items.h"
 
 #include <stdlib.h>
@@ -121,7 +122,7 @@ typedef struct byte14_ctx {
 } byte14_ctx;
 
 typedef struct ly_item {
-    uint16_t type, size;
+    uint16_t type, size, version;
     unsigned cur;
     unsigned n_layers;
     uint32_t bytes[2];        /* RGB14, WAVEPACKET14: [0]; RGBNIR14: RGB, NIR */
@@ -701,8 +702,8 @@ static void byte14_read(ly_item *it, byte14_ctx *c, uint8_t *last, uint8_t *out)
 }
 
 /* One item of one point in `context`. The value predicted from is the
- * current context's, except on a switch to a channel used before, where
- * the reference keeps predicting from the channel it left. */
+ * current context's, except (before v4) on a switch to a channel used
+ * before, where the reference keeps predicting from the channel it left. */
 static void item_read(ly_item *it, unsigned context, uint8_t *out, int *fail)
 {
     unsigned from = it->cur;
@@ -723,6 +724,8 @@ static void item_read(ly_item *it, unsigned context, uint8_t *out, int *fail)
             }
             from = context;
         }
+        if (it->version >= 4)
+            from = context; /* v4 predicts from the channel it switched to */
     }
     switch (it->type) {
     case LAZ_RGB14:
@@ -754,6 +757,7 @@ laz_layered *laz_layered_create(const laz_item *items, unsigned n_items)
         ly_item *it = &ly->items[i];
         it->type = items[i].type;
         it->size = items[i].size;
+        it->version = items[i].version;
         if (it->type == LAZ_BYTE14) {
             it->byte_sizes = calloc(it->size, sizeof *it->byte_sizes);
             it->byte_dec = calloc(it->size, sizeof *it->byte_dec);
