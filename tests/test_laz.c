@@ -245,68 +245,79 @@ static void test_twins(void)
     }
 }
 
-/* The COPC file holds simple.las's points in octree order, with another
- * offset: the same records as a set, every field compared. */
-static void test_copc_set(void)
+/* Files holding simple.las's points in point format 7: the COPC file in
+ * octree order with another offset (compared as a set), and a one-chunk
+ * file in order. Every field is compared through record_key. */
+static void test_format7_twins(void)
 {
-    size_t zs, ls;
-    uint8_t *z = load("1.2-with-color.copc.laz", &zs), *l = load("simple.las", &ls);
-    CHECK(z && l);
-    if (!z || !l) {
+    static const struct {
+        const char *laz;
+        int ordered;
+    } files[] = {{"1.2-with-color.copc.laz", 0}, {"gen_fmt7_plain.laz", 1}};
+    size_t ls;
+    uint8_t *l = load("simple.las", &ls);
+    CHECK(l != NULL);
+    for (size_t f = 0; l && f < sizeof files / sizeof files[0]; f++) {
+        size_t zs;
+        uint8_t *z = load(files[f].laz, &zs);
+        tessel_diag d;
+        tsl_laz_info info;
+        uint8_t *rec = z ? decode(z, zs, files[f].laz, 2, &info, &d) : NULL;
+        CHECK_MSG(rec != NULL, "%s: %s", files[f].laz, z ? d.message : "missing");
+        size_t n, rl;
+        const uint8_t *want = twin_records(l, &n, &rl);
+        if (rec && info.header.count == n && info.header.format == 7) {
+            int64_t shift[3], none[3] = {0, 0, 0};
+            for (int a = 0; a < 3; a++)
+                shift[a] = llround(info.header.offset[a] / info.header.scale[a]);
+            key *ka = malloc(n * sizeof *ka), *kb = malloc(n * sizeof *kb);
+            for (size_t i = 0; i < n; i++) {
+                ka[i] = record_key(rec + i * info.header.record_length, 7, shift);
+                kb[i] = record_key(want + i * rl, 3, none);
+            }
+            if (!files[f].ordered) {
+                qsort(ka, n, sizeof *ka, key_cmp);
+                qsort(kb, n, sizeof *kb, key_cmp);
+            }
+            CHECK_MSG(memcmp(ka, kb, n * sizeof *ka) == 0, "%s: not simple.las's points",
+                      files[f].laz);
+            check_bounds(rec, n, &info, files[f].laz);
+            free(ka);
+            free(kb);
+        } else {
+            CHECK_MSG(0, "%s: not 1065 points of format 7", files[f].laz);
+        }
+        if (rec && !files[f].ordered) {
+            /* the chunks' octree nodes contain their points */
+            CHECK(info.copc && info.chunk_count > 1);
+            tsl_laz *zz;
+            CHECK(tsl_laz_open_memory(&zz, z, zs, "copc", &d) == TESSEL_OK);
+            size_t outside = 0, nodes = 0;
+            size_t rl7 = info.header.record_length;
+            for (size_t k = 0; k < info.chunk_count; k++) {
+                double lo[3], hi[3];
+                if (!tsl_laz_chunk_bounds(zz, k, lo, hi))
+                    continue;
+                nodes++;
+                size_t m = tsl_laz_chunk_points(zz, k);
+                uint8_t *cr = malloc(m * rl7);
+                CHECK(tsl_laz_read_chunk(zz, k, cr, &d) == TESSEL_OK);
+                for (size_t i = 0; i < m; i++)
+                    for (int a = 0; a < 3; a++) {
+                        double w = i32(cr + i * rl7 + 4 * a) * info.header.scale[a] +
+                                   info.header.offset[a];
+                        outside += w < lo[a] - 1e-6 || w > hi[a] + 1e-6;
+                    }
+                free(cr);
+            }
+            CHECK_MSG(nodes == info.chunk_count && outside == 0,
+                      "copc: %zu of %zu chunks have nodes, %zu coordinates outside", nodes,
+                      info.chunk_count, outside);
+            tsl_laz_close(zz);
+        }
+        free(rec);
         free(z);
-        free(l);
-        return;
     }
-    tessel_diag d;
-    tsl_laz_info info;
-    uint8_t *rec = decode(z, zs, "copc", 2, &info, &d);
-    CHECK_MSG(rec != NULL, "copc: %s", d.message);
-    size_t n, rl;
-    const uint8_t *want = twin_records(l, &n, &rl);
-    if (rec && info.header.count == n) {
-        CHECK(info.copc && info.chunk_count > 1 && info.header.format == 7);
-        int64_t shift[3], none[3] = {0, 0, 0};
-        for (int a = 0; a < 3; a++)
-            shift[a] = llround((info.header.offset[a] - 0.0) / info.header.scale[a]);
-        key *ka = malloc(n * sizeof *ka), *kb = malloc(n * sizeof *kb);
-        for (size_t i = 0; i < n; i++) {
-            ka[i] = record_key(rec + i * info.header.record_length, 7, shift);
-            kb[i] = record_key(want + i * rl, 3, none);
-        }
-        qsort(ka, n, sizeof *ka, key_cmp);
-        qsort(kb, n, sizeof *kb, key_cmp);
-        CHECK_MSG(memcmp(ka, kb, n * sizeof *ka) == 0, "copc: not the twin's points");
-        check_bounds(rec, n, &info, "copc");
-        /* the chunks' octree nodes contain their points */
-        tsl_laz *zz;
-        CHECK(tsl_laz_open_memory(&zz, z, zs, "copc", &d) == TESSEL_OK);
-        size_t outside = 0, nodes = 0;
-        for (size_t k = 0; k < info.chunk_count; k++) {
-            double lo[3], hi[3];
-            if (!tsl_laz_chunk_bounds(zz, k, lo, hi))
-                continue;
-            nodes++;
-            size_t m = tsl_laz_chunk_points(zz, k);
-            uint8_t *cr = malloc(m * info.header.record_length);
-            CHECK(tsl_laz_read_chunk(zz, k, cr, &d) == TESSEL_OK);
-            for (size_t i = 0; i < m; i++)
-                for (int a = 0; a < 3; a++) {
-                    double w = i32(cr + i * info.header.record_length + 4 * a) *
-                                   info.header.scale[a] +
-                               info.header.offset[a];
-                    outside += w < lo[a] - 1e-6 || w > hi[a] + 1e-6;
-                }
-            free(cr);
-        }
-        CHECK_MSG(nodes == info.chunk_count && outside == 0,
-                  "copc: %zu of %zu chunks have nodes, %zu coordinates outside", nodes,
-                  info.chunk_count, outside);
-        tsl_laz_close(zz);
-        free(ka);
-        free(kb);
-    }
-    free(rec);
-    free(z);
     free(l);
 }
 
@@ -678,7 +689,7 @@ static void test_public(void)
 int main(void)
 {
     test_twins();
-    test_copc_set();
+    test_format7_twins();
     test_chunks();
     test_missing_table();
     test_prefixes();

@@ -1,7 +1,8 @@
 // Test-file generator for tessel's LAZ reader: writes a LAZ file (the LASzip
 // reference encoder) and its uncompressed LAS twin from simple.las's first n
 // points, with the other fields of point format F filled in a fixed pattern.
-// Usage: gen simple.las FORMAT N EXTRA_BYTES CHUNK_SIZE CHANNELS OUT_PREFIX
+// Usage: make_laz simple.las FORMAT N EXTRA_BYTES CHUNK_SIZE CHANNELS OUT_PREFIX
+// (CHANNELS 0: the input's own fields, no pattern, one channel)
 // Environment: LAZ_VERSION (item version), LAZ_COMPRESSOR (1 or 2 for 0-5).
 #include "laszip_api.h"
 #include <stdio.h>
@@ -54,7 +55,15 @@ int main(int argc, char **argv) {
   for (int i = 0; i < n; i++) {
     laszip_read_point(r);
     laszip_point q = *p; q.extra_bytes = 0; q.num_extra_bytes = 0;
-    if (fmt >= 6) {
+    if (fmt >= 6 && channels == 0) {
+      /* plain: the format-3 fields as they are */
+      q.extended_number_of_returns = p->number_of_returns; q.extended_return_number = p->return_number;
+      q.extended_classification = p->classification;
+      q.extended_classification_flags = p->synthetic_flag | (p->keypoint_flag << 1) | (p->withheld_flag << 2);
+      q.extended_scan_angle = (short)(p->scan_angle_rank / 0.006 + (p->scan_angle_rank >= 0 ? 0.5 : -0.5));
+      q.extended_scanner_channel = 0;
+      q.extended_point_type = 1;
+    } else if (fmt >= 6) {
       /* returns up to 15, classes above 31, channels that come back */
       int nr = 1 + (i / 7) % 15, rn = 1 + i % nr;
       q.extended_number_of_returns = nr; q.extended_return_number = rn;
@@ -69,12 +78,12 @@ int main(int argc, char **argv) {
       q.extended_scanner_channel = channels > 1 ? ((i / 11) * 7 + (i / 53)) % channels : 0;
       q.extended_point_type = 1;
     }
-    if (fmt == 1 || fmt == 3 || fmt >= 4) {
+    if ((fmt == 1 || fmt == 3 || fmt >= 4) && channels > 0) {
       if (i % 3 == 0) t += 0.00025 * (1 + rnd() % 4);
       if (i == n * 3 / 4) t += 1e6;  /* a jump the 32-bit differences cannot code */
       q.gps_time = p->gps_time + t;
     }
-    q.rgb[3] = (unsigned short)(i * 37 % 2000 + (i % 9 == 0 ? 40000 : 0));
+    if (channels > 0) q.rgb[3] = (unsigned short)(i * 37 % 2000 + (i % 9 == 0 ? 40000 : 0));
     if (fmt == 4 || fmt == 5 || fmt >= 9) {
       unsigned char *w = q.wave_packet;
       w[0] = 1 + i % 3;
