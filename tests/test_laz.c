@@ -661,6 +661,141 @@ static void test_lies(void)
     free(base);
 }
 
+/* World coordinates of a cloud, sorted (x, then y, then z). */
+static int cmp3(const void *a, const void *b)
+{
+    const double *p = a, *q = b;
+    for (int k = 0; k < 3; k++)
+        if (p[k] != q[k])
+            return p[k] < q[k] ? -1 : 1;
+    return 0;
+}
+
+static double *sorted_world(const tessel_cloud *c)
+{
+    double *w = malloc((c->count + 1) * 3 * sizeof *w);
+    for (size_t i = 0; i < c->count; i++)
+        for (int k = 0; k < 3; k++)
+            w[3 * i + k] = c->offset[k] + c->xyz[3 * i + k];
+    qsort(w, c->count, 3 * sizeof *w, cmp3);
+    return w;
+}
+
+/* A bounding box keeps the same points from the LAS file, the LAZ file and
+ * the COPC file (which decodes only the chunks whose node meets it). */
+static void test_bbox(void)
+{
+    size_t ls, zs, cs;
+    uint8_t *las = load("simple.las", &ls), *laz = load("simple.laz", &zs),
+            *copc = load("1.2-with-color.copc.laz", &cs);
+    CHECK(las && laz && copc);
+    if (!las || !laz || !copc) {
+        free(las);
+        free(laz);
+        free(copc);
+        return;
+    }
+    tessel_diag d;
+    tsl_laz *z;
+    CHECK(tsl_laz_open_memory(&z, copc, cs, "copc", &d) == TESSEL_OK);
+    const double boxes[][6] = {
+        {636000, 849000, 400, 637000, 850000, 600},     /* a corner */
+        {635000, 848000, 0, 640000, 854000, 1000},      /* everything */
+        {637000, 851000, 450, 637600, 851500, 500},     /* small, inside */
+        {0, 0, 0, 1, 1, 1},                             /* nothing */
+        {635619.85, 848899.7, 406.59, 635619.85, 853535.43, 586.38}, /* a plane on min x */
+    };
+    for (size_t t = 0; t < sizeof boxes / sizeof boxes[0]; t++) {
+        tessel_read_params rp = tessel_read_params_default();
+        rp.bbox = boxes[t];
+        tessel_cloud a, b, c;
+        CHECK(tessel_cloud_parse(&a, las, ls, "s.las", &rp, &d) == TESSEL_OK);
+        CHECK(tessel_cloud_parse(&b, laz, zs, "s.laz", &rp, &d) == TESSEL_OK);
+        CHECK(tessel_cloud_parse(&c, copc, cs, "c.laz", &rp, &d) == TESSEL_OK);
+        size_t inside = 0;
+        const uint8_t *rec = las + rd32(las + 96);
+        for (size_t i = 0; i < 1065; i++) {
+            double w[3];
+            for (int k = 0; k < 3; k++)
+                w[k] = i32(rec + 34 * i + 4 * k) * 0.01;
+            inside += w[0] >= boxes[t][0] && w[1] >= boxes[t][1] && w[2] >= boxes[t][2] &&
+                      w[0] <= boxes[t][3] && w[1] <= boxes[t][4] && w[2] <= boxes[t][5];
+        }
+        CHECK_MSG(a.count == inside && b.count == inside && c.count == inside,
+                  "box %zu: LAS %zu, LAZ %zu, COPC %zu points, %zu inside", t, a.count, b.count,
+                  c.count, inside);
+        CHECK_MSG(a.count == b.count &&
+                      memcmp(a.xyz, b.xyz, a.count * 3 * sizeof(float)) == 0 &&
+                      memcmp(a.offset, b.offset, sizeof a.offset) == 0,
+                  "box %zu: LAZ differs from LAS", t);
+        if (a.count == c.count) {
+            double *wa = sorted_world(&a), *wc = sorted_world(&c), worst = 0;
+            for (size_t i = 0; i < 3 * a.count; i++)
+                worst = fmax(worst, fabs(wa[i] - wc[i]));
+            CHECK_MSG(worst < 1e-3, "box %zu: COPC points %g from LAS's", t, worst);
+            free(wa);
+            free(wc);
+        }
+        /* the COPC read skips the chunks away from the box */
+        size_t meet = 0;
+        for (size_t k = 0; k < tsl_laz_get_info(z)->chunk_count; k++) {
+            double lo[3], hi[3];
+            CHECK(tsl_laz_chunk_bounds(z, k, lo, hi));
+            bool m = true;
+            for (int a3 = 0; a3 < 3; a3++)
+                m = m && hi[a3] >= boxes[t][a3] && lo[a3] <= boxes[t][a3 + 3];
+            meet += m;
+        }
+        if (t == 0 || t == 2 || t == 3)
+            CHECK_MSG(meet < tsl_laz_get_info(z)->chunk_count, "box %zu: all %zu chunks meet",
+                      t, meet);
+        tessel_cloud_free(&a);
+        tessel_cloud_free(&b);
+        tessel_cloud_free(&c);
+    }
+    tsl_laz_close(z);
+    /* boxes that make no sense, formats that have none */
+    double nan_box[6] = {0, 0, NAN, 1, 1, 1}, empty[6] = {0, 0, 0, 1, -1, 1};
+    tessel_read_params rp = tessel_read_params_default();
+    tessel_cloud c;
+    rp.bbox = nan_box;
+    CHECK(tessel_cloud_parse(&c, las, ls, "s.las", &rp, &d) == TESSEL_ERR_INVALID_ARG);
+    rp.bbox = empty;
+    CHECK(tessel_cloud_parse(&c, laz, zs, "s.laz", &rp, &d) == TESSEL_ERR_INVALID_ARG);
+    rp.bbox = boxes[1];
+    CHECK(tessel_cloud_parse(&c, "1 2 3\n", 6, "p.xyz", &rp, &d) == TESSEL_ERR_UNSUPPORTED);
+    CHECK(strstr(d.message, "LAS and LAZ") != NULL);
+    free(las);
+    free(laz);
+    free(copc);
+
+    /* the CLI's --bbox */
+    char in[1024], cmd[2048];
+    snprintf(in, sizeof in, "%s/laz/1.2-with-color.copc.laz", TESSEL_TEST_DATA);
+    snprintf(cmd, sizeof cmd,
+             "\"%s\" info \"%s\" --json --bbox 636000,849000,400,637000,850000,600 "
+             "> /tmp/tessel_test_laz_%d.json 2>&1",
+             TESSEL_CLI, in, (int)getpid());
+    int rc = system(cmd);
+    CHECK_MSG(rc != -1 && WIFEXITED(rc) && WEXITSTATUS(rc) == 0, "%s", cmd);
+    char out[256];
+    snprintf(out, sizeof out, "/tmp/tessel_test_laz_%d.json", (int)getpid());
+    FILE *fp = fopen(out, "rb");
+    char text[4096] = "";
+    if (fp) {
+        size_t got = fread(text, 1, sizeof text - 1, fp);
+        text[got] = 0;
+        fclose(fp);
+    }
+    CHECK_MSG(strstr(text, "\"points\": 57") || strstr(text, "\"points\":57"),
+              "info --bbox: %s", text);
+    remove(out);
+    snprintf(cmd, sizeof cmd, "\"%s\" info \"%s\" --bbox 1,2,3 > /dev/null 2>&1", TESSEL_CLI,
+             in);
+    rc = system(cmd);
+    CHECK(rc != -1 && WIFEXITED(rc) && WEXITSTATUS(rc) == 1);
+}
+
 /* tessel_cloud_read takes a .laz path (sniffed as LAS), and the CLI
  * reconstructs a LAZ terrain in height mode. */
 static void test_public(void)
@@ -694,6 +829,7 @@ int main(void)
     test_missing_table();
     test_prefixes();
     test_lies();
+    test_bbox();
     test_public();
     return TEST_SUMMARY();
 }

@@ -31,6 +31,7 @@ typedef struct tsl_builder {
     uint32_t width, height;          /* organized layout, 0 if none */
     double viewpoint[3];
     int has_viewpoint;
+    const double *bbox;              /* LAS/LAZ: keep points in it (tessel_read_params.bbox) */
 } tsl_builder;
 
 void tsl_builder_init(tsl_builder *b, const tessel_read_params *params);
@@ -158,8 +159,9 @@ const uint8_t *tsl_las_find_vlr(const uint8_t *data, const tsl_las_header *h,
 
 /* Hands n point records (record_length apart, as a LAS file stores them) to
  * the builder: world coordinates X * scale + offset in double, RGB (16-bit
- * values scaled down to 8 when any exceeds 255). at: the records' byte
- * offset in the file, for diagnostics. */
+ * values scaled down to 8 when any of the n exceeds 255); with b->bbox only
+ * the points inside it. at: the records' byte offset in the file, for
+ * diagnostics. */
 tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_header *h,
                            const char *name, uint64_t at, tsl_builder *b, tessel_diag *diag);
 

@@ -229,16 +229,38 @@ const uint8_t *tsl_las_find_vlr(const uint8_t *data, const tsl_las_header *h,
     return NULL;
 }
 
+static void las_world(const uint8_t *rec, const tsl_las_header *h, double xyz[3])
+{
+    for (int k = 0; k < 3; k++)
+        xyz[k] = (double)rd_i32(rec + 4 * k) * h->scale[k] + h->offset[k];
+}
+
+static bool las_in_box(const double xyz[3], const double *box)
+{
+    return xyz[0] >= box[0] && xyz[1] >= box[1] && xyz[2] >= box[2] && xyz[0] <= box[3] &&
+           xyz[1] <= box[4] && xyz[2] <= box[5];
+}
+
 tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_header *h,
                            const char *name, uint64_t at, tsl_builder *b, tessel_diag *diag)
 {
-    if (n > b->max_points) {
-        tsl_diag_set(diag, name, 0, 1, 107,
-                     "LAS file has %zu points, above the limit of %llu", n,
+    size_t record_length = h->record_length;
+    size_t kept = n;
+    if (b->bbox) {
+        kept = 0;
+        for (size_t i = 0; i < n; i++) {
+            double xyz[3];
+            las_world(records + i * record_length, h, xyz);
+            kept += las_in_box(xyz, b->bbox);
+        }
+    }
+    if (kept > b->max_points) {
+        tsl_diag_set(diag, name, 0, 1, h->minor >= 4 ? 247 : 107,
+                     "LAS file has %zu points%s, above the limit of %llu", kept,
+                     b->bbox ? " in the bounding box" : "",
                      (unsigned long long)b->max_points);
         return TESSEL_ERR_LIMIT;
     }
-    size_t record_length = h->record_length;
     const uint8_t *rec = records;
     unsigned rgb_at = las_rgb_offset[h->format];
     /* Colours are 16-bit in the spec but many writers store 8-bit values:
@@ -253,16 +275,17 @@ tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_heade
     }
     tessel_status st = tsl_builder_attributes(b, 0, rgb_at != 0);
     if (st == TESSEL_OK)
-        st = tsl_builder_reserve(b, n, 0);
+        st = tsl_builder_reserve(b, kept, 0);
     if (st != TESSEL_OK) {
-        tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %zu LAS points: %s", n,
+        tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %zu LAS points: %s", kept,
                      tessel_status_str(st));
         return st;
     }
     for (size_t i = 0; i < n; i++, rec += record_length) {
         double xyz[3];
-        for (int k = 0; k < 3; k++)
-            xyz[k] = (double)rd_i32(rec + 4 * k) * h->scale[k] + h->offset[k];
+        las_world(rec, h, xyz);
+        if (b->bbox && !las_in_box(xyz, b->bbox))
+            continue;
         uint8_t rgb[3];
         if (rgb_at) {
             for (int k = 0; k < 3; k++)

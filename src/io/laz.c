@@ -898,20 +898,31 @@ tessel_status tsl_laz_read_next(tsl_laz *z, uint8_t *records, size_t *count,
     return st;
 }
 
-tessel_status tsl_laz_decode_all(tsl_laz *z, uint8_t *records, int threads,
-                                 tessel_diag *diag)
+/* Decodes the chunks with select[k] set (all when select is NULL) into
+ * records, packed in file order. */
+static tessel_status laz_decode(tsl_laz *z, const uint8_t *select, uint8_t *records,
+                                int threads, tessel_diag *diag)
 {
     size_t n = z->info.chunk_count, rl = z->info.header.record_length;
+    uint64_t *dest = malloc((n + 1) * sizeof *dest);
+    if (!dest) {
+        tsl_diag_set(diag, z->name, 0, 0, 0, "out of memory for %zu LAZ chunks", n);
+        return TESSEL_ERR_NOMEM;
+    }
+    dest[0] = 0;
+    for (size_t k = 0; k < n; k++)
+        dest[k + 1] = dest[k] + (!select || select[k] ? z->first[k + 1] - z->first[k] : 0);
+    tessel_status st = TESSEL_OK;
     if (!z->data || !z->info.has_table || n < 2) {
-        for (size_t k = 0; k < n; k++) {
-            tessel_status st = tsl_laz_read_chunk(z, k, records + z->first[k] * rl, diag);
-            if (st != TESSEL_OK)
-                return st;
-        }
-        return TESSEL_OK;
+        for (size_t k = 0; k < n && st == TESSEL_OK; k++)
+            if (!select || select[k])
+                st = tsl_laz_read_chunk(z, k, records + dest[k] * rl, diag);
+        free(dest);
+        return st;
     }
     laz_chunk_status *cs = calloc(n, sizeof *cs);
     if (!cs) {
+        free(dest);
         tsl_diag_set(diag, z->name, 0, 0, 0, "out of memory for %zu LAZ chunks", n);
         return TESSEL_ERR_NOMEM;
     }
@@ -922,6 +933,8 @@ tessel_status tsl_laz_decode_all(tsl_laz *z, uint8_t *records, int threads,
         laz_decoder *dec = laz_decoder_create(z->items, z->n_items, z->info.compressor == 3);
 #pragma omp for schedule(dynamic, 1)
         for (size_t k = 0; k < n; k++) {
+            if (select && !select[k])
+                continue;
             if (!dec) {
                 cs[k].fail = LAZ_FAIL_NOMEM;
                 continue;
@@ -929,16 +942,31 @@ tessel_status tsl_laz_decode_all(tsl_laz *z, uint8_t *records, int threads,
             size_t consumed;
             const uint8_t *p = z->data + z->starts[k];
             laz_decode_chunk(dec, p, z->data + z->starts[k + 1], tsl_laz_chunk_points(z, k),
-                             records + z->first[k] * rl, &consumed, &cs[k]);
+                             records + dest[k] * rl, &consumed, &cs[k]);
         }
         laz_decoder_destroy(dec);
     }
-    tessel_status st = TESSEL_OK;
     for (size_t k = 0; k < n && st == TESSEL_OK; k++)
         if (cs[k].fail)
             st = laz_chunk_error(z, k, z->starts[k], &cs[k], diag);
     free(cs);
+    free(dest);
     return st;
+}
+
+tessel_status tsl_laz_decode_all(tsl_laz *z, uint8_t *records, int threads,
+                                 tessel_diag *diag)
+{
+    return laz_decode(z, NULL, records, threads, diag);
+}
+
+/* Whether two closed boxes {min, max} meet. */
+static bool boxes_meet(const double lo[3], const double hi[3], const double *box)
+{
+    for (int k = 0; k < 3; k++)
+        if (hi[k] < box[k] || lo[k] > box[k + 3])
+            return false;
+    return true;
 }
 
 tessel_status tsl_laz_parse(const uint8_t *data, size_t size, const char *name,
@@ -950,24 +978,37 @@ tessel_status tsl_laz_parse(const uint8_t *data, size_t size, const char *name,
     if (st != TESSEL_OK)
         return st;
     const tsl_las_header *zh = &z->info.header;
-    if (zh->count > b->max_points) {
+    /* COPC and a box: only the chunks whose node meets it (a chunk the
+     * hierarchy does not list is decoded). The emission filters points. */
+    size_t chunks = z->info.chunk_count;
+    uint8_t *select = NULL;
+    uint64_t n = zh->count;
+    if (b->bbox && z->info.copc && (select = malloc(chunks ? chunks : 1)) != NULL) {
+        n = 0;
+        for (size_t k = 0; k < chunks; k++) {
+            double lo[3], hi[3];
+            select[k] = !tsl_laz_chunk_bounds(z, k, lo, hi) || boxes_meet(lo, hi, b->bbox);
+            n += select[k] ? tsl_laz_chunk_points(z, k) : 0;
+        }
+    }
+    if (n > b->max_points && !b->bbox) {
         tsl_diag_set(diag, name, 0, 1, count_field(zh),
                      "LAS file has %llu points, above the limit of %llu",
-                     (unsigned long long)zh->count, (unsigned long long)b->max_points);
-        tsl_laz_close(z);
-        return TESSEL_ERR_LIMIT;
+                     (unsigned long long)n, (unsigned long long)b->max_points);
+        st = TESSEL_ERR_LIMIT;
     }
-    size_t n = (size_t)zh->count;
-    uint8_t *records = n ? tsl_alloc_array(n, zh->record_length) : NULL;
-    if (n && !records) {
-        tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %zu decoded LAZ points", n);
-        tsl_laz_close(z);
-        return TESSEL_ERR_NOMEM;
+    uint8_t *records = NULL;
+    if (st == TESSEL_OK && n && !(records = tsl_alloc_array((size_t)n, zh->record_length))) {
+        tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %llu decoded LAZ points",
+                     (unsigned long long)n);
+        st = TESSEL_ERR_NOMEM;
     }
-    st = tsl_laz_decode_all(z, records, 0, diag);
     if (st == TESSEL_OK)
-        st = tsl_las_emit(records, n, zh, name, zh->point_offset, b, diag);
+        st = laz_decode(z, select, records, 0, diag);
+    if (st == TESSEL_OK)
+        st = tsl_las_emit(records, (size_t)n, zh, name, zh->point_offset, b, diag);
     free(records);
+    free(select);
     tsl_laz_close(z);
     return st;
 }
