@@ -15,8 +15,11 @@
  * alone (tsl_laz_decode_all, points/s on one thread in CPU time and on two in
  * wall time) and the whole public read (decoding, then the builder).
  *
- * Usage: bench_formats [N [LAZ_DIR]]   (default 1000000 points, the source
- * tree's tests/data/laz) */
+ * Any FILE.laz argument is also timed as it is (decoder alone, one and two
+ * threads): real files with their own chunks.
+ *
+ * Usage: bench_formats [N [LAZ_DIR]] [FILE.laz...]   (default 1000000 points,
+ * the source tree's tests/data/laz) */
 #include "tessel.h"
 
 #include "bench_data.h"
@@ -367,6 +370,36 @@ static double time_laz_decode(const uint8_t *data, size_t size, uint8_t *records
     return t;
 }
 
+/* A LAZ file as it is: the decoder alone on one and two threads. */
+static void bench_laz_file(const char *path)
+{
+    size_t size;
+    uint8_t *data = load_file(path, &size);
+    tsl_laz *z;
+    tessel_diag d;
+    if (!data || tsl_laz_open_memory(&z, data, size, path, &d) != TESSEL_OK) {
+        fprintf(stderr, "bench_formats: %s: %s\n", path, data ? d.message : "cannot read");
+        free(data);
+        return;
+    }
+    const tsl_laz_info *info = tsl_laz_get_info(z);
+    size_t n = (size_t)info->header.count;
+    uint8_t *records = malloc(n * info->header.record_length + 1);
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    char label[96];
+    for (int threads = 1; threads <= 2; threads++) {
+        snprintf(label, sizeof label, "%.40s format %u, %d thr", base, info->header.format,
+                 threads);
+        report(label, n, size, time_laz_decode(data, size, records, threads),
+               time_laz_decode(data, size, records, threads),
+               time_laz_decode(data, size, records, threads));
+    }
+    free(records);
+    tsl_laz_close(z);
+    free(data);
+}
+
 static void bench_laz(const char *dir, const char *file, const char *what, size_t want)
 {
     char path[2048];
@@ -412,11 +445,23 @@ static double time_strtod(const char *text, size_t n, double *checksum)
 }
 
 
+static bool is_laz_path(const char *a)
+{
+    size_t len = strlen(a);
+    return len > 4 && strcmp(a + len - 4, ".laz") == 0;
+}
+
 int main(int argc, char **argv)
 {
-    size_t n = argc > 1 ? (size_t)strtoull(argv[1], NULL, 10) : 1000000;
+    /* N and LAZ_DIR are the arguments that are not .laz files */
+    const char *plain[2] = {NULL, NULL};
+    int n_plain = 0;
+    for (int i = 1; i < argc; i++)
+        if (!is_laz_path(argv[i]) && n_plain < 2)
+            plain[n_plain++] = argv[i];
+    size_t n = plain[0] ? (size_t)strtoull(plain[0], NULL, 10) : 1000000;
     if (n == 0) {
-        fprintf(stderr, "usage: bench_formats [N [LAZ_DIR]]\n");
+        fprintf(stderr, "usage: bench_formats [N [LAZ_DIR]] [FILE.laz...]\n");
         return 1;
     }
     float *xyz = bench_torus(n, 42);
@@ -441,8 +486,8 @@ int main(int argc, char **argv)
     printf("(strtod checksum %.6g)\n", s1 + s2 + s3);
     /* the source tree's test files, unless a folder is given */
     char dir[2048];
-    if (argc > 2) {
-        snprintf(dir, sizeof dir, "%s", argv[2]);
+    if (plain[1]) {
+        snprintf(dir, sizeof dir, "%s", plain[1]);
     } else {
         snprintf(dir, sizeof dir, "%s", __FILE__);
         char *slash = strrchr(dir, '/');
@@ -451,6 +496,9 @@ int main(int argc, char **argv)
     }
     bench_laz(dir, "simple.laz", "LAZ 1.2 format 3", n);
     bench_laz(dir, "gen_fmt7_plain.laz", "LAZ 1.4 format 7", n);
+    for (int i = 1; i < argc; i++)
+        if (is_laz_path(argv[i]))
+            bench_laz_file(argv[i]);
     free(xyz);
     free(las);
     free(txt);
