@@ -192,8 +192,15 @@ TESSEL_API tessel_format tessel_format_from_path(const char *path);
  * cannot make the reader allocate more than the data can fill. */
 typedef struct tessel_read_params {
     tessel_format format;    /* AUTO by default */
-    uint64_t max_points;     /* default 2^31 - 1 */
+    uint64_t max_points;     /* default 2^31 - 1 (with bbox: of the points kept) */
     uint64_t max_faces;      /* default 2^31 - 1 */
+    /* LAS and LAZ input only: keep the points inside this box, world
+     * coordinates {xmin, ymin, zmin, xmax, ymax, zmax}, bounds included; the
+     * array must outlive the call. A COPC file decodes only the chunks whose
+     * octree node meets the box. NULL (default): every point. With another
+     * format: TESSEL_ERR_UNSUPPORTED; min > max or a NaN:
+     * TESSEL_ERR_INVALID_ARG. */
+    const double *bbox;
 } tessel_read_params;
 TESSEL_API tessel_read_params tessel_read_params_default(void);
 

@@ -19,6 +19,10 @@ const char cli_common_help[] =
     "  --threads N   worker threads (default: OMP_NUM_THREADS, else all cores)\n"
     "  --quiet       no progress bar and no summary\n"
     "  --json        print the summary as one JSON object on stdout\n"
+    "  --bbox X0,Y0,Z0,X1,Y1,Z1\n"
+    "                LAS/LAZ input: read only the points in this box (world\n"
+    "                coordinates, bounds included; COPC: only the chunks whose\n"
+    "                octree node meets it are decoded)\n"
     "  --help        this text\n"
     "Exit codes: 0 ok, 1 usage, 2 input error, 3 output error, 4 failure.\n";
 
@@ -117,7 +121,8 @@ int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, con
         memset(&preload.cloud, 0, sizeof preload.cloud);
         preload.loaded = 0;
     } else {
-        st = tessel_cloud_read(cloud, path, NULL, &diag);
+        tessel_read_params rp = cli_read_params(common);
+        st = tessel_cloud_read(cloud, path, &rp, &diag);
     }
     if (st != TESSEL_OK) {
         cli_error_status(st, &diag, path);
@@ -184,9 +189,42 @@ const char *cli_option_value(int argc, char **argv, int *i)
     return argv[++*i];
 }
 
+tessel_read_params cli_read_params(const cli_common *common)
+{
+    tessel_read_params rp = tessel_read_params_default();
+    if (common->has_bbox)
+        rp.bbox = common->bbox;
+    return rp;
+}
+
 int cli_common_option(cli_common *common, int argc, char **argv, int *i)
 {
     const char *a = argv[*i];
+    if (strcmp(a, "--bbox") == 0) {
+        const char *v = cli_option_value(argc, argv, i);
+        if (!v)
+            return -1;
+        const char *p = v;
+        for (int k = 0; k < 6; k++) {
+            char *end = NULL;
+            errno = 0;
+            common->bbox[k] = strtod(p, &end);
+            if (end == p || errno != 0 || !isfinite(common->bbox[k]) ||
+                (k < 5 ? *end != ',' : *end != '\0')) {
+                cli_error("--bbox: '%s' is not six numbers X0,Y0,Z0,X1,Y1,Z1", v);
+                return -1;
+            }
+            p = end + 1;
+        }
+        for (int k = 0; k < 3; k++)
+            if (common->bbox[k] > common->bbox[k + 3]) {
+                cli_error("--bbox: the %c range [%g, %g] is empty", "xyz"[k], common->bbox[k],
+                          common->bbox[k + 3]);
+                return -1;
+            }
+        common->has_bbox = true;
+        return 1;
+    }
     if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
         common->quiet = true;
         return 1;

@@ -23,6 +23,8 @@ typedef struct cli_common {
     int threads;   /* --threads N; 0 = OpenMP default (OMP_NUM_THREADS) */
     bool quiet;    /* --quiet: no progress, no summary */
     bool json;     /* --json: machine-readable summary on stdout */
+    bool has_bbox; /* --bbox X0,Y0,Z0,X1,Y1,Z1: read only the LAS/LAZ points in it */
+    double bbox[6];
 } cli_common;
 
 /* A subcommand: argv[0] is the subcommand's name. Returns an exit code. */
@@ -59,7 +61,10 @@ void cli_chosen_text(void);
 int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what,
                    const cli_common *common);
 
-/* If argv[*i] is a common option (--threads N, --quiet, --json), consumes
+/* Read parameters for an input file: the defaults, with --bbox. */
+tessel_read_params cli_read_params(const cli_common *common);
+
+/* If argv[*i] is a common option (--threads N, --quiet, --json, --bbox), consumes
  * it (and its value) and returns 1; 0 when it is not one; -1 on a bad
  * value (after printing the error). */
 int cli_common_option(cli_common *common, int argc, char **argv, int *i);

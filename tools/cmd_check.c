@@ -200,7 +200,7 @@ static void print_text(const char *mesh, const char *input, const char *ref,
 
 int cmd_check(int argc, char **argv)
 {
-    cli_common common = {0, false, false};
+    cli_common common = {0};
     tessel_check_params params = tessel_check_params_default();
     const char *mesh_path = NULL, *input_path = NULL, *ref_path = NULL;
     double tau_rel = 0.0;

@@ -106,8 +106,10 @@ int cmd_convert(int argc, char **argv)
     }
     if (as_mesh && mesh.xyz == NULL)
         st = tessel_mesh_read(&mesh, in, NULL, &diag);
-    else if (!as_mesh)
-        st = tessel_cloud_read(&cloud, in, NULL, &diag);
+    else if (!as_mesh) {
+        tessel_read_params rp = cli_read_params(&common);
+        st = tessel_cloud_read(&cloud, in, &rp, &diag);
+    }
     else
         st = TESSEL_OK;
     if (st != TESSEL_OK) {

@@ -125,7 +125,8 @@ int cmd_info(int argc, char **argv)
 
     tessel_diag diag = {0};
     tessel_cloud cloud = {0};
-    tessel_status st = tessel_cloud_read(&cloud, path, NULL, &diag);
+    tessel_read_params rp = cli_read_params(&common);
+    tessel_status st = tessel_cloud_read(&cloud, path, &rp, &diag);
     if (st != TESSEL_OK) {
         cli_error_status(st, &diag, path);
         return cli_exit_for_read(st);

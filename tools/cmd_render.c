@@ -40,7 +40,7 @@ static bool parse_size(const char *text, uint32_t *w, uint32_t *h)
 
 int cmd_render(int argc, char **argv)
 {
-    cli_common common = {0, false, false};
+    cli_common common = {0};
     tessel_render_params params = tessel_render_params_default();
     const char *paths[2] = {NULL, NULL};
     int npaths = 0;

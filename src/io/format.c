@@ -67,6 +67,7 @@ tessel_read_params tessel_read_params_default(void)
     p.format = TESSEL_FORMAT_AUTO;
     p.max_points = ((uint64_t)1 << 31) - 1;
     p.max_faces = ((uint64_t)1 << 31) - 1;
+    p.bbox = NULL;
     return p;
 }
 
@@ -183,6 +184,23 @@ static tessel_status parse_buffer(tsl_builder *b, const void *data, size_t size,
     if (st != TESSEL_OK)
         return st;
     tsl_builder_init(b, params);
+    if (params->bbox) {
+        /* A box filters LAS records as they are emitted (src/io/las.c). */
+        const double *box = params->bbox;
+        for (int k = 0; k < 3; k++)
+            if (!(box[k] <= box[k + 3])) {
+                tsl_diag_set(diag, *name, 0, 0, 0,
+                             "bounding box %c range [%g, %g] is empty or not a number",
+                             "xyz"[k], box[k], box[k + 3]);
+                return TESSEL_ERR_INVALID_ARG;
+            }
+        if (fn != tsl_parse_las) {
+            tsl_diag_set(diag, *name, 0, 0, 0,
+                         "a bounding box applies to LAS and LAZ input only");
+            return TESSEL_ERR_UNSUPPORTED;
+        }
+        b->bbox = box;
+    }
     st = fn(data, size, *name, want_faces, b, diag);
     if (st != TESSEL_OK && diag && !diag->message[0])
         tsl_diag_set(diag, *name, 0, 0, 0, "%s", tessel_status_str(st));

@@ -31,6 +31,7 @@ typedef struct tsl_builder {
     uint32_t width, height;          /* organized layout, 0 if none */
     double viewpoint[3];
     int has_viewpoint;
+    const double *bbox;              /* LAS/LAZ: keep points in it (tessel_read_params.bbox) */
 } tsl_builder;
 
 void tsl_builder_init(tsl_builder *b, const tessel_read_params *params);
@@ -127,6 +128,42 @@ tessel_status tsl_parse_pcd(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag);
 tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag);
+
+/* ---- LAS header and records, shared by the LAS and LAZ readers ---- */
+
+/* A LAS public header block, checked (src/io/las.c). */
+typedef struct tsl_las_header {
+    unsigned minor;              /* LAS 1.minor, 0..4 */
+    unsigned format;             /* point data record format 0..10, compression bits removed */
+    int compressed;              /* format byte had bit 7 (or 6) set: LAZ */
+    size_t header_size, point_offset, record_length;
+    uint32_t vlr_count;
+    uint64_t count;              /* points: the 1.4 64-bit count when it is set */
+    double scale[3], offset[3];  /* world = integer * scale + offset */
+    double min[3], max[3];       /* the header's bounds */
+    uint64_t evlr_start;         /* 1.4 extended VLRs (count 0: none) */
+    uint32_t evlr_count;
+} tsl_las_header;
+
+/* Checks and reads the header and walks the VLRs. data holds at least the
+ * first min(file_size, point offset) bytes of a file of file_size bytes.
+ * Errors name the field's byte offset. Point counts against the bytes that
+ * follow are the caller's to check (they differ for LAZ). */
+tessel_status tsl_las_header_parse(const uint8_t *data, size_t size, uint64_t file_size,
+                                   const char *name, tsl_las_header *h, tessel_diag *diag);
+
+/* Finds a VLR (user ID, record ID) among the header's VLRs: its payload
+ * (inside data[header_size, point_offset)) and length, or NULL. */
+const uint8_t *tsl_las_find_vlr(const uint8_t *data, const tsl_las_header *h,
+                                const char *user_id, unsigned record_id, size_t *length);
+
+/* Hands n point records (record_length apart, as a LAS file stores them) to
+ * the builder: world coordinates X * scale + offset in double, RGB (16-bit
+ * values scaled down to 8 when any of the n exceeds 255); with b->bbox only
+ * the points inside it. at: the records' byte offset in the file, for
+ * diagnostics. */
+tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_header *h,
+                           const char *name, uint64_t at, tsl_builder *b, tessel_diag *diag);
 
 /* Reads a whole file into memory (NUL-terminated for text parsers; *size
  * excludes the NUL). */

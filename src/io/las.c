@@ -9,9 +9,11 @@
  * record length may exceed the format's minimum (extra bytes): the excess is
  * skipped. Nothing is trusted before it is bounds-checked against the file
  * size: the header, every VLR and EVLR, and the point count (legacy 32-bit or
- * the 1.4 64-bit one) times the record length. LAZ (compressed) files are
- * recognised and refused. */
+ * the 1.4 64-bit one) times the record length. LAZ (compressed point data:
+ * bit 7 of the format byte) goes to the LAZ decoder (src/io/laz.c), which
+ * shares the header and the emission of records with this file. */
 #include "io/io.h"
+#include "io/laz.h"
 
 #include <string.h>
 
@@ -114,10 +116,10 @@ static tessel_status las_check_evlrs(const uint8_t *data, size_t size, size_t po
 
 static bool las_usable_scale(double s) { return isfinite(s) && s != 0.0; }
 
-tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
-                            int want_faces, tsl_builder *b, tessel_diag *diag)
+tessel_status tsl_las_header_parse(const uint8_t *data, size_t size, uint64_t file_size,
+                                   const char *name, tsl_las_header *h, tessel_diag *diag)
 {
-    (void)want_faces;
+    memset(h, 0, sizeof *h);
     if (size < 4 || memcmp(data, "LASF", 4) != 0) {
         tsl_diag_set(diag, name, 0, 1, 0, "not a LAS file: missing \"LASF\" signature");
         return TESSEL_ERR_PARSE;
@@ -134,52 +136,52 @@ tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
                      "LAS version %u.%u is not supported (1.0 to 1.4 are)", major, minor);
         return TESSEL_ERR_UNSUPPORTED;
     }
-    size_t header_size = rd_u16(data + 94);
-    size_t point_offset = rd_u32(data + 96);
-    uint32_t vlr_count = rd_u32(data + 100);
+    h->minor = minor;
+    h->header_size = rd_u16(data + 94);
+    h->point_offset = rd_u32(data + 96);
+    h->vlr_count = rd_u32(data + 100);
     unsigned format = data[104];
-    size_t record_length = rd_u16(data + 105);
-    uint64_t count = rd_u32(data + 107);
+    h->record_length = rd_u16(data + 105);
+    h->count = rd_u32(data + 107);
 
     size_t needed_header = minor >= 4 ? LAS_HEADER_14 : minor == 3 ? LAS_HEADER_13
                                                                   : LAS_HEADER_MIN;
-    if (header_size < needed_header) {
+    if (h->header_size < needed_header) {
         tsl_diag_set(diag, name, 0, 1, 94,
                      "LAS %u.%u header size %zu is below the %zu bytes that version needs",
-                     major, minor, header_size, needed_header);
+                     major, minor, h->header_size, needed_header);
         return TESSEL_ERR_PARSE;
     }
-    if (header_size > size) {
+    if (h->header_size > size) {
         tsl_diag_set(diag, name, 0, 1, 94,
-                     "LAS header size %zu exceeds the file size (%zu bytes)", header_size,
-                     size);
+                     "LAS header size %zu exceeds the file size (%llu bytes)", h->header_size,
+                     (unsigned long long)file_size);
         return TESSEL_ERR_PARSE;
     }
-    if (point_offset < header_size || point_offset > size) {
+    if (h->point_offset < h->header_size || h->point_offset > file_size ||
+        h->point_offset > size) {
         tsl_diag_set(diag, name, 0, 1, 96,
                      "LAS offset to point data %zu lies outside [header size %zu, file "
-                     "size %zu]",
-                     point_offset, header_size, size);
+                     "size %llu]",
+                     h->point_offset, h->header_size, (unsigned long long)file_size);
         return TESSEL_ERR_PARSE;
     }
-    if (format & 0x80) {
-        tsl_diag_set(diag, name, 0, 1, 104,
-                     "LAZ compressed point data (format byte 0x%02x) is not supported; "
-                     "decompress it first (laszip, pdal translate)",
-                     format);
-        return TESSEL_ERR_UNSUPPORTED;
-    }
+    /* LASzip marks compressed point data with bit 7 (early versions bit 6). */
+    h->compressed = (format & 0xC0) != 0;
+    if (h->compressed)
+        format &= 0x3F;
     if (format > 10) {
         tsl_diag_set(diag, name, 0, 1, 104,
                      "LAS point data record format %u is not supported (0 to 10 are)",
                      format);
         return TESSEL_ERR_UNSUPPORTED;
     }
-    if (record_length < las_min_length[format]) {
+    h->format = format;
+    if (h->record_length < las_min_length[format]) {
         tsl_diag_set(diag, name, 0, 1, 105,
                      "LAS point record length %zu is shorter than the %u bytes of point "
                      "format %u",
-                     record_length, las_min_length[format], format);
+                     h->record_length, las_min_length[format], format);
         return TESSEL_ERR_PARSE;
     }
     if (minor >= 4) {
@@ -187,52 +189,80 @@ tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
          * for formats 6-10 and for more than 2^32-1 points. */
         uint64_t count64 = rd_u64(data + 247);
         if (count64 != 0 || format >= 6)
-            count = count64;
+            h->count = count64;
+        h->evlr_start = rd_u64(data + 235);
+        h->evlr_count = rd_u32(data + 243);
     }
-
-    double scale[3], offset[3];
     for (int k = 0; k < 3; k++) {
-        scale[k] = rd_f64(data + 131 + 8 * k);
-        offset[k] = rd_f64(data + 155 + 8 * k);
-        if (!las_usable_scale(scale[k]) || !isfinite(offset[k])) {
+        h->scale[k] = rd_f64(data + 131 + 8 * k);
+        h->offset[k] = rd_f64(data + 155 + 8 * k);
+        h->max[k] = rd_f64(data + 179 + 16 * k);
+        h->min[k] = rd_f64(data + 187 + 16 * k);
+        if (!las_usable_scale(h->scale[k]) || !isfinite(h->offset[k])) {
             tsl_diag_set(diag, name, 0, 1, (uint64_t)(131 + 8 * k),
                          "LAS %c scale factor %g / offset %g is not usable", "XYZ"[k],
-                         scale[k], offset[k]);
+                         h->scale[k], h->offset[k]);
             return TESSEL_ERR_PARSE;
         }
     }
+    return las_check_vlrs(data, h->header_size, h->point_offset, h->vlr_count, name, diag);
+}
 
-    tessel_status st = las_check_vlrs(data, header_size, point_offset, vlr_count, name, diag);
-    if (st != TESSEL_OK)
-        return st;
-
-    size_t available = size - point_offset;
-    if (count > available / record_length) {
-        tsl_diag_set(diag, name, 0, 1, point_offset,
-                     "LAS header announces %llu points of %zu bytes from byte %zu, but "
-                     "only %zu bytes follow (room for %zu points)",
-                     (unsigned long long)count, record_length, point_offset, available,
-                     available / record_length);
-        return TESSEL_ERR_PARSE;
+const uint8_t *tsl_las_find_vlr(const uint8_t *data, const tsl_las_header *h,
+                                const char *user_id, unsigned record_id, size_t *length)
+{
+    /* The same walk as las_check_vlrs, which has accepted it. */
+    size_t pos = h->header_size, ulen = strlen(user_id);
+    for (uint32_t i = 0; i < h->vlr_count; i++) {
+        if (h->point_offset - pos < LAS_VLR_HEADER)
+            break;
+        size_t len = rd_u16(data + pos + 20);
+        const uint8_t *uid = data + pos + 2;
+        if (rd_u16(data + pos + 18) == record_id && ulen <= 16 &&
+            memcmp(uid, user_id, ulen) == 0 && (ulen == 16 || uid[ulen] == 0)) {
+            *length = len;
+            return data + pos + LAS_VLR_HEADER;
+        }
+        pos += LAS_VLR_HEADER + len;
     }
-    size_t n = (size_t)count;
-    size_t points_end = point_offset + n * record_length;
-    if (minor >= 4) {
-        st = las_check_evlrs(data, size, points_end, rd_u64(data + 235), rd_u32(data + 243),
-                             name, diag);
-        if (st != TESSEL_OK)
-            return st;
-    }
+    *length = 0;
+    return NULL;
+}
 
-    if (n > b->max_points) {
-        tsl_diag_set(diag, name, 0, 1, 107,
-                     "LAS file has %zu points, above the limit of %llu", n,
+static void las_world(const uint8_t *rec, const tsl_las_header *h, double xyz[3])
+{
+    for (int k = 0; k < 3; k++)
+        xyz[k] = (double)rd_i32(rec + 4 * k) * h->scale[k] + h->offset[k];
+}
+
+static bool las_in_box(const double xyz[3], const double *box)
+{
+    return xyz[0] >= box[0] && xyz[1] >= box[1] && xyz[2] >= box[2] && xyz[0] <= box[3] &&
+           xyz[1] <= box[4] && xyz[2] <= box[5];
+}
+
+tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_header *h,
+                           const char *name, uint64_t at, tsl_builder *b, tessel_diag *diag)
+{
+    size_t record_length = h->record_length;
+    size_t kept = n;
+    if (b->bbox) {
+        kept = 0;
+        for (size_t i = 0; i < n; i++) {
+            double xyz[3];
+            las_world(records + i * record_length, h, xyz);
+            kept += las_in_box(xyz, b->bbox);
+        }
+    }
+    if (kept > b->max_points) {
+        tsl_diag_set(diag, name, 0, 1, h->minor >= 4 ? 247 : 107,
+                     "LAS file has %zu points%s, above the limit of %llu", kept,
+                     b->bbox ? " in the bounding box" : "",
                      (unsigned long long)b->max_points);
         return TESSEL_ERR_LIMIT;
     }
-
-    const uint8_t *rec = data + point_offset;
-    unsigned rgb_at = las_rgb_offset[format];
+    const uint8_t *rec = records;
+    unsigned rgb_at = las_rgb_offset[h->format];
     /* Colours are 16-bit in the spec but many writers store 8-bit values:
      * scale down only when some value needs it. */
     int rgb_shift = 0;
@@ -243,18 +273,19 @@ tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
                 rgb_shift = 8;
         }
     }
-    st = tsl_builder_attributes(b, 0, rgb_at != 0);
+    tessel_status st = tsl_builder_attributes(b, 0, rgb_at != 0);
     if (st == TESSEL_OK)
-        st = tsl_builder_reserve(b, n, 0);
+        st = tsl_builder_reserve(b, kept, 0);
     if (st != TESSEL_OK) {
-        tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %zu LAS points: %s", n,
+        tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %zu LAS points: %s", kept,
                      tessel_status_str(st));
         return st;
     }
     for (size_t i = 0; i < n; i++, rec += record_length) {
         double xyz[3];
-        for (int k = 0; k < 3; k++)
-            xyz[k] = (double)rd_i32(rec + 4 * k) * scale[k] + offset[k];
+        las_world(rec, h, xyz);
+        if (b->bbox && !las_in_box(xyz, b->bbox))
+            continue;
         uint8_t rgb[3];
         if (rgb_at) {
             for (int k = 0; k < 3; k++)
@@ -262,10 +293,40 @@ tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
         }
         st = tsl_builder_point(b, xyz, NULL, rgb_at ? rgb : NULL);
         if (st != TESSEL_OK) {
-            tsl_diag_set(diag, name, 0, 1, (uint64_t)(rec - data), "LAS point %zu: %s", i,
-                         tessel_status_str(st));
+            tsl_diag_set(diag, name, 0, 1, at + (uint64_t)(rec - records),
+                         "LAS point %zu: %s", i, tessel_status_str(st));
             return st;
         }
     }
     return TESSEL_OK;
+}
+
+tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
+                            int want_faces, tsl_builder *b, tessel_diag *diag)
+{
+    (void)want_faces;
+    tsl_las_header h;
+    tessel_status st = tsl_las_header_parse(data, size, size, name, &h, diag);
+    if (st != TESSEL_OK)
+        return st;
+    if (h.compressed)
+        return tsl_laz_parse(data, size, name, &h, b, diag);
+
+    size_t available = size - h.point_offset;
+    if (h.count > available / h.record_length) {
+        tsl_diag_set(diag, name, 0, 1, h.point_offset,
+                     "LAS header announces %llu points of %zu bytes from byte %zu, but "
+                     "only %zu bytes follow (room for %zu points)",
+                     (unsigned long long)h.count, h.record_length, h.point_offset, available,
+                     available / h.record_length);
+        return TESSEL_ERR_PARSE;
+    }
+    size_t n = (size_t)h.count;
+    size_t points_end = h.point_offset + n * h.record_length;
+    if (h.minor >= 4) {
+        st = las_check_evlrs(data, size, points_end, h.evlr_start, h.evlr_count, name, diag);
+        if (st != TESSEL_OK)
+            return st;
+    }
+    return tsl_las_emit(data + h.point_offset, n, &h, name, h.point_offset, b, diag);
 }

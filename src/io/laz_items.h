@@ -1,0 +1,90 @@
+/* Item decoders of LAZ chunks, private to src/io/laz*.c.
+ *
+ * A LAZ point is a sequence of items (the "laszip encoded" VLR lists their
+ * type, size and version) whose concatenation is the LAS point record. The
+ * first point of a chunk is stored raw; every later point is predicted from
+ * the one before. Two families:
+ *  - pointwise (compressors 1 and 2; laz_pointwise.c): all items of a point
+ *    in one arithmetic stream, items POINT10, GPSTIME11, RGB12, WAVEPACKET13
+ *    and BYTE, versions 1 and 2 (WAVEPACKET13: 1), point formats 0-5;
+ *  - layered (compressor 3; laz_layered.c): after the raw point, the chunk's
+ *    point count and the byte size of every layer, then each layer as its own
+ *    stream (POINT14: XY with returns and channel, Z, classification, flags,
+ *    intensity, scan angle, user data, point source, GPS time; RGB; NIR;
+ *    wave packet; one per extra byte), items POINT14, RGB14, RGBNIR14,
+ *    WAVEPACKET14, BYTE14, versions 3 and 4 (2: as 3), point formats 6-10.
+ * A decoder object holds every model of its items; it is reused chunk after
+ * chunk (each chunk starts from fresh models) by one thread at a time. */
+#ifndef TESSEL_IO_LAZ_ITEMS_H
+#define TESSEL_IO_LAZ_ITEMS_H
+
+#include "io/laz_coder.h"
+
+enum laz_item_type {
+    LAZ_BYTE = 0,
+    LAZ_POINT10 = 6,
+    LAZ_GPSTIME11 = 7,
+    LAZ_RGB12 = 8,
+    LAZ_WAVEPACKET13 = 9,
+    LAZ_POINT14 = 10,
+    LAZ_RGB14 = 11,
+    LAZ_RGBNIR14 = 12,
+    LAZ_WAVEPACKET14 = 13,
+    LAZ_BYTE14 = 14
+};
+
+enum { LAZ_MAX_ITEMS = 16 };
+
+/* A layered chunk whose layer sizes do not fit in its bytes. */
+enum { LAZ_FAIL_LAYOUT = 8 };
+
+typedef struct laz_item {
+    uint16_t type, size, version;
+} laz_item;
+
+/* What a failed chunk reports: its LAZ_FAIL_* flags, the first point that
+ * could not be decoded (index in the chunk) and the byte offset, from the
+ * chunk's start, of the data that ran out or did not fit. */
+typedef struct laz_chunk_status {
+    int fail;
+    size_t point;
+    size_t at;
+} laz_chunk_status;
+
+typedef struct laz_decoder laz_decoder;
+
+/* A decoder for the items (already validated by laz.c: known types and
+ * versions, pointwise or layered as `layered` says). NULL: no memory. */
+laz_decoder *laz_decoder_create(const laz_item *items, unsigned n_items, int layered);
+void laz_decoder_destroy(laz_decoder *dec);
+
+/* Decodes the `count` points of the chunk [p, end) into out (count records,
+ * record_length = the items' total size apart). *consumed: the bytes the
+ * chunk used (pointwise: up to the arithmetic decoder's last read; layered:
+ * up to the end of its last layer). Returns 0 or fills st and returns its
+ * fail flags. Work is bounded by count and the flags stop it early. */
+int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, size_t count,
+                     uint8_t *out, size_t *consumed, laz_chunk_status *st);
+
+/* RGB12 v2 and RGB14: the colour c from the last one (byte_used: 128
+ * symbols, diff: six models of 256). */
+void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff[6],
+                    const uint16_t last[3], uint16_t c[3]);
+
+/* GPS time difference of GPSTIME11 v2 and POINT14, for the codes 0 and
+ * 2..510: a multiple (-10..500) of the sequence's last difference plus a
+ * corrector (ic: 32 bits, 9 contexts); updates the last difference after
+ * four extreme multiples in a row. */
+enum { LAZ_GPS_MULTI = 500, LAZ_GPS_MULTI_MINUS = -10 };
+int32_t laz_gps_multi_diff(laz_ic *ic, laz_dec *d, int32_t *last_diff, int32_t *extreme,
+                           uint32_t multi);
+
+/* Layered decoding (laz_layered.c), called by laz_decode_chunk. */
+typedef struct laz_layered laz_layered;
+laz_layered *laz_layered_create(const laz_item *items, unsigned n_items);
+void laz_layered_destroy(laz_layered *ly);
+int laz_layered_chunk(laz_layered *ly, const uint8_t *p, const uint8_t *end, size_t count,
+                      uint8_t *out, size_t record_length, size_t *consumed,
+                      laz_chunk_status *st);
+
+#endif /* TESSEL_IO_LAZ_ITEMS_H */
