@@ -241,7 +241,8 @@ static const char auto_help[] =
     "  --mode height|range|grid fixed projection plane: terrain, scans from\n"
     "                           one position, organized grids (see --mode\n"
     "                           height --help)\n"
-    "A method's own options need its --method or --mode.\n\n"
+    "A method's own options choose it (--mu greedy, --refine smooth, ...);\n"
+    "the fixed-plane options need their --mode.\n\n"
     "Options:\n"
     "  --ascii       write ascii PLY\n\n";
 
@@ -256,9 +257,37 @@ static bool is_flag(const char *a)
     return false;
 }
 
+/* Options only one method takes: giving one asks for that method. */
+static bool in_list(const char *a, const char *const *list, size_t n)
+{
+    for (size_t i = 0; i < n; i++)
+        if (strcmp(a, list[i]) == 0)
+            return true;
+    return false;
+}
+
+static const char *const greedy_only[] = {"--mu", "--min-angle", "--plane", "--max-spacing",
+                                          "--stream"};
+static const char *const smooth_only[] = {
+    "--refine",       "--passes",      "--k",         "--sigma-rho",  "--sigma-w",
+    "--sigma-max",    "--n-min",       "--max-diameter", "--max-edge", "--theta",
+    "--theta-step",   "--phi",         "--normal-angle", "--max-hole", "--tile-points",
+    "--eps",          "--min-edge",    "--spacing",   "--max-noise"};
+#define COUNT(a) (sizeof(a) / sizeof *(a))
+
 /* --method auto: reads IN, chooses the method, hands the cloud to it. */
 static int reconstruct_auto(int argc, char **argv)
 {
+    bool want_greedy = false, want_smooth = false;
+    for (int i = 1; i < argc; i++) {
+        want_greedy |= in_list(argv[i], greedy_only, COUNT(greedy_only));
+        want_smooth |= in_list(argv[i], smooth_only, COUNT(smooth_only));
+    }
+    if (want_greedy && want_smooth) {
+        cli_error("reconstruct: options of greedy projection and of the smooth method "
+                  "together: give --method");
+        return CLI_USAGE;
+    }
     const char *in = NULL, *out = NULL;
     cli_common common = {0};
     for (int i = 1; i < argc; i++) {
@@ -294,8 +323,12 @@ static int reconstruct_auto(int argc, char **argv)
         return rc;
     tessel_reconstruct_params p = tessel_reconstruct_params_default();
     p.threads = common.threads;
+    if (want_greedy || want_smooth)
+        p.method = want_greedy ? TESSEL_METHOD_GREEDY : TESSEL_METHOD_SMOOTH;
     tessel_method_choice choice;
     tessel_status st = tessel_choose_method(&cloud, &p, &choice);
+    if (want_greedy || want_smooth)
+        choice.reason = "its options were given";
     if (st != TESSEL_OK) {
         cli_error("%s: choosing the method failed: %s", in, tessel_status_str(st));
         tessel_cloud_free(&cloud);
