@@ -916,6 +916,39 @@ TESSEL_API tessel_status tessel_reconstruct_fixed_plane_mesh(
     const tessel_cloud *cloud, const tessel_fixed_plane_params *params,
     const tessel_callbacks *callbacks, tessel_mesh *mesh, tessel_fixed_plane_stats *stats);
 
+/* Denoising a scan from one position along its rays, before the range or
+ * grid mode meshes it (src/fixed_plane/denoise.c): each point moves along
+ * the line from the viewpoint onto a robust plane through its neighbours,
+ * so a noisy scan comes out smooth and its depth steps stay steps. */
+typedef struct tessel_ray_denoise_params {
+    uint32_t k;          /* neighbours of each plane; 0 (default): enough to
+                            cover about 3 noise sigmas, 16..64 */
+    uint32_t passes;     /* each from the last one's positions; default 2
+                            (1..10) */
+    double noise;        /* noise sigma, world units; 0 (default): the
+                            cloud's own estimate (tessel_cloud_noise) */
+    double viewpoint[3]; /* world coordinates, used when use_viewpoint */
+    int use_viewpoint;   /* 0 (default): the cloud's viewpoint, which it must
+                            then have */
+    int threads;         /* 0 = OpenMP default; the result does not depend on
+                            it */
+} tessel_ray_denoise_params;
+TESSEL_API tessel_ray_denoise_params tessel_ray_denoise_params_default(void);
+
+typedef struct tessel_ray_denoise_stats {
+    double noise;        /* sigma used, world units */
+    uint32_t k;          /* neighbours used */
+    double rms_move;     /* RMS distance the points moved, world units */
+} tessel_ray_denoise_stats;
+
+/* Moves the points of cloud (in place) along their rays from the
+ * viewpoint (params or the cloud's) onto planes fitted robustly to their
+ * neighbours, by at most three noise sigmas. INVALID_ARG without a
+ * viewpoint; TOO_FEW_POINTS under 16 points. stats may be NULL. */
+TESSEL_API tessel_status tessel_denoise_along_rays(tessel_cloud *cloud,
+                                                   const tessel_ray_denoise_params *params,
+                                                   tessel_ray_denoise_stats *stats);
+
 /* ------------------------------------------------------------------------ */
 /* Noisy clouds: robust smoothing, clustering, reduction (src/smooth/,      */
 /* src/smooth/cluster.c, src/smooth/simplify.c)                                            */

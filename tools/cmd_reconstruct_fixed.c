@@ -40,12 +40,18 @@ static const char fixed_help[] =
     "  --noise SIGMA          noise along the line of sight, world units\n"
     "                         (default: estimated from the data)\n"
     "  --noise-factor K       joins reach K*SIGMA beyond the sampling (default 6)\n"
+    "  --no-denoise           range, grid: mesh the points as they are (by\n"
+    "                         default a noisy scan, 0.3 surface spacings or\n"
+    "                         more, is first denoised along its rays: each\n"
+    "                         point moves along its line of sight onto a\n"
+    "                         robust plane through its neighbours)\n"
     "  --ascii                write ascii PLY\n\n";
 
 typedef struct fixed_opts {
     tessel_fixed_plane_params p;
     int mode_given;
     int ascii;
+    int no_denoise;
     double cell_arg;
 } fixed_opts;
 
@@ -148,6 +154,10 @@ static int fixed_option(void *ctx, int argc, char **argv, int *i)
     }
     if (strcmp(a, "--ascii") == 0) {
         o->ascii = 1;
+        return 1;
+    }
+    if (strcmp(a, "--no-denoise") == 0) {
+        o->no_denoise = 1;
         return 1;
     }
     static const char *const numeric[] = {"--cell", "--points-per-dexel", "--max-angle",
@@ -253,6 +263,36 @@ int cmd_reconstruct_fixed(int argc, char **argv)
         return CLI_USAGE;
     }
 
+    /* Range and grid scans with noise: denoised along their rays first. */
+    tessel_ray_denoise_stats ds = {0};
+    int denoised = 0;
+    if (!o.no_denoise && o.p.mode != TESSEL_FIXED_PLANE_HEIGHT &&
+        (o.p.use_viewpoint || cloud.has_viewpoint)) {
+        tessel_noise_estimate e;
+        if (tessel_cloud_noise(&cloud, common.threads, &e) == TESSEL_OK &&
+            e.noise_ratio >= tessel_reconstruct_params_default().clean_below) {
+            tessel_ray_denoise_params dp = tessel_ray_denoise_params_default();
+            dp.noise = e.sigma;
+            dp.threads = common.threads;
+            if (o.p.use_viewpoint) {
+                dp.use_viewpoint = 1;
+                memcpy(dp.viewpoint, o.p.viewpoint, sizeof dp.viewpoint);
+            }
+            tessel_status dst = tessel_denoise_along_rays(&cloud, &dp, &ds);
+            if (dst != TESSEL_OK) {
+                cli_error("%s: denoising along the rays failed: %s", in, tessel_status_str(dst));
+                tessel_cloud_free(&cloud);
+                return CLI_FAILURE;
+            }
+            denoised = 1;
+            /* The joins' reach stays that of the noise the scan had: the
+             * denoised points' residue would cut the surface at every
+             * ripple. */
+            if (!(o.p.noise > 0.0))
+                o.p.noise = e.sigma;
+        }
+    }
+
     fixed_run run = {&o.p, {0}};
     double t_write = 0;
     int code = cli_stream_reconstruction(in, out, &cloud, o.ascii, &common,
@@ -277,17 +317,23 @@ int cmd_reconstruct_fixed(int argc, char **argv)
                "\"cells\": %zu, \"cells_missing\": %zu, \"cells_open\": %zu, "
                "\"triangles_folded\": %zu, \"triangles_nonmanifold\": %zu, "
                "\"poles_closed\": %d, \"triangles\": %zu, \"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
-               "\"dexel_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f",
+               "\"dexel_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f, "
+               "\"denoised\": %d, \"denoise_noise\": %.9g, \"denoise_rms_move\": %.9g",
                mode_name(fs.mode), n, fs.representatives, fs.dexels_filled, fs.columns, fs.rows,
                cu, cv, fs.wrap_columns, fs.wrap_rows, fs.axis[0], fs.axis[1], fs.axis[2],
                fs.viewpoint[0], fs.viewpoint[1], fs.viewpoint[2], fs.noise, fs.noise_estimated,
                fs.margin, o.p.max_angle, fs.cells, fs.cells_missing, fs.cells_open,
                fs.triangles_folded, fs.triangles_nonmanifold, fs.poles_closed, fs.triangles,
                t_read, fs.seconds,
-               fs.seconds_dexels, t_write, seconds);
+               fs.seconds_dexels, t_write, seconds, denoised, ds.noise, ds.rms_move);
         cli_chosen_json_end();
     } else if (!common.quiet) {
         cli_chosen_text();
+        if (denoised)
+            fprintf(stderr,
+                    "tessel: denoised along the rays: noise %.4g, %u neighbours, points moved "
+                    "%.4g (RMS)\n",
+                    ds.noise, ds.k, ds.rms_move);
         fprintf(stderr, "tessel: %s mode: %zu points, %u x %u %s", mode_name(fs.mode), n,
                 fs.columns, fs.rows, fs.mode == TESSEL_FIXED_PLANE_GRID ? "grid" : "dexels");
         if (fs.mode == TESSEL_FIXED_PLANE_HEIGHT)
