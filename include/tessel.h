@@ -1462,6 +1462,11 @@ typedef struct tessel_reconstruct_params {
     tessel_smooth_recon_params smooth;
     tessel_fixed_plane_params fixed;    /* mode: default RANGE (what AUTO picks
                                            for organized scans with a viewpoint) */
+    int denoise;                        /* 1 (default): the range and grid
+                                           modes mesh a noisy scan (noise of
+                                           clean_below or more) denoised along
+                                           its rays (tessel_denoise_along_rays,
+                                           on a copy); 0: as it is */
     int threads;                        /* every method's when not 0 */
 } tessel_reconstruct_params;
 TESSEL_API tessel_reconstruct_params tessel_reconstruct_params_default(void);
@@ -1494,6 +1499,8 @@ typedef struct tessel_reconstruct_summary {
     tessel_recon_summary greedy;        /* the method's own figures */
     tessel_smooth_recon_stats smooth;
     tessel_fixed_plane_stats fixed;
+    int denoised;                       /* 1: the scan was denoised first */
+    tessel_ray_denoise_stats denoise;
 } tessel_reconstruct_summary;
 
 /* Reconstructs a mesh from cloud with the method params ask for or the one

@@ -86,10 +86,20 @@ static void test_auto(void)
               "organized plane: %zu triangles", m.triangle_count);
     check_valid(&m, "organized plane");
     tessel_mesh_free(&m);
-    /* Without its viewpoint it is a cloud like any other: clean. */
+    CHECK(!s.denoised);
+    /* The same scan with range noise: denoised along its rays first. */
+    surf_rng rng = surf_seed(3);
+    for (size_t i = 0; i < c.count; i++)
+        c.xyz[3 * i + 2] += (float)(0.01 * surf_gauss(&rng));
+    CHECK(tessel_reconstruct(&c, NULL, NULL, &m, &s) == TESSEL_OK);
+    CHECK_MSG(s.denoised && s.denoise.rms_move > 0.005, "noisy organized plane: denoised %d",
+              s.denoised);
+    check_valid(&m, "noisy organized plane");
+    tessel_mesh_free(&m);
+    /* Without its viewpoint it is a cloud like any other: noisy. */
     c.has_viewpoint = 0;
     CHECK(tessel_choose_method(&c, NULL, &ch) == TESSEL_OK);
-    CHECK(ch.method == TESSEL_METHOD_GREEDY);
+    CHECK(ch.method == TESSEL_METHOD_SMOOTH);
     tessel_cloud_free(&c);
 
     /* Bad arguments. */

@@ -28,6 +28,7 @@ tessel_reconstruct_params tessel_reconstruct_params_default(void)
     p.smooth = tessel_smooth_recon_params_default();
     p.fixed = tessel_fixed_plane_params_default();
     p.fixed.mode = TESSEL_FIXED_PLANE_RANGE;
+    p.denoise = 1;
     p.threads = 0;
     return p;
 }
@@ -91,6 +92,39 @@ tessel_status tessel_choose_method(const tessel_cloud *cloud, const tessel_recon
     return TESSEL_OK;
 }
 
+/* The range and grid modes on a noisy scan: on a copy denoised along its
+ * rays, the joins keeping the reach of the scan's noise. */
+static tessel_status fixed_plane(const tessel_cloud *cloud, tessel_reconstruct_params *p,
+                                 const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                 tessel_reconstruct_summary *s)
+{
+    tessel_noise_estimate e;
+    bool rays = p->fixed.mode != TESSEL_FIXED_PLANE_HEIGHT &&
+                (p->fixed.use_viewpoint || cloud->has_viewpoint);
+    if (!p->denoise || !rays || tessel_cloud_noise(cloud, p->threads, &e) != TESSEL_OK ||
+        e.noise_ratio < p->clean_below)
+        return tessel_reconstruct_fixed_plane_mesh(cloud, &p->fixed, callbacks, mesh, &s->fixed);
+    tessel_cloud copy;
+    tessel_status st = tessel_cloud_copy(&copy, cloud);
+    if (st)
+        return st;
+    tessel_ray_denoise_params dp = tessel_ray_denoise_params_default();
+    dp.noise = e.sigma;
+    dp.threads = p->threads;
+    if (p->fixed.use_viewpoint) {
+        dp.use_viewpoint = 1;
+        memcpy(dp.viewpoint, p->fixed.viewpoint, sizeof dp.viewpoint);
+    }
+    if ((st = tessel_denoise_along_rays(&copy, &dp, &s->denoise)) == TESSEL_OK) {
+        s->denoised = 1;
+        if (!(p->fixed.noise > 0.0))
+            p->fixed.noise = e.sigma;
+        st = tessel_reconstruct_fixed_plane_mesh(&copy, &p->fixed, callbacks, mesh, &s->fixed);
+    }
+    tessel_cloud_free(&copy);
+    return st;
+}
+
 tessel_status tessel_reconstruct(const tessel_cloud *cloud, const tessel_reconstruct_params *params,
                                  const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                  tessel_reconstruct_summary *summary)
@@ -119,7 +153,7 @@ tessel_status tessel_reconstruct(const tessel_cloud *cloud, const tessel_reconst
         if (p.method == TESSEL_METHOD_AUTO)
             p.fixed.mode = s.choice.mode;
         s.choice.mode = p.fixed.mode;
-        st = tessel_reconstruct_fixed_plane_mesh(cloud, &p.fixed, callbacks, mesh, &s.fixed);
+        st = fixed_plane(cloud, &p, callbacks, mesh, &s);
         break;
     case TESSEL_METHOD_SMOOTH:
         st = tessel_reconstruct_smooth(cloud, &p.smooth, callbacks, mesh, &s.smooth);
