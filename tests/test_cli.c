@@ -5,11 +5,13 @@
 #include "tessel.h"
 
 #include <dirent.h>
+#include <signal.h>
 #include <math.h>
 #include <stdbool.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 static char tmpdir[256];
@@ -376,6 +378,51 @@ static void test_reconstruct_auto(void)
     unlink(out);
 }
 
+/* SIGINT during a reconstruction: the process exits with 130 and leaves
+ * no temporary or partial output; SIGTERM the same with 143. */
+static void test_interrupt(void)
+{
+    tessel_cloud c;
+    const size_t n = 600000;
+    CHECK(tessel_cloud_alloc(&c, n, 0, 0) == TESSEL_OK);
+    const double golden = 2.399963229728653;
+    for (size_t i = 0; i < n; i++) {
+        double z = 1.0 - 2.0 * ((double)i + 0.5) / (double)n, r = sqrt(1 - z * z);
+        c.xyz[3 * i] = (float)(r * cos(golden * (double)i));
+        c.xyz[3 * i + 1] = (float)(r * sin(golden * (double)i));
+        c.xyz[3 * i + 2] = (float)z;
+    }
+    char in[512], out[512];
+    snprintf(in, sizeof in, "%s/keep_big.ply", tmpdir);
+    snprintf(out, sizeof out, "%s/interrupted.ply", tmpdir);
+    CHECK(tessel_cloud_write(&c, in, NULL, NULL) == TESSEL_OK);
+    tessel_cloud_free(&c);
+    const int sigs[2] = {SIGINT, SIGTERM};
+    for (int k = 0; k < 2; k++) {
+        pid_t pid = fork();
+        if (pid == 0) {
+            if (!freopen("/dev/null", "w", stdout) || !freopen("/dev/null", "w", stderr))
+                _exit(99);
+            execl(TESSEL_CLI, TESSEL_CLI, "reconstruct", in, out, "--method", "greedy",
+                  (char *)NULL);
+            _exit(98);
+        }
+        CHECK(pid > 0);
+        /* Interrupt once the output's temporary exists: mid-reconstruction. */
+        struct timespec pause = {0, 5000000};
+        for (int t = 0; t < 2000 && stray_files() == 0; t++)
+            nanosleep(&pause, NULL);
+        CHECK(stray_files() > 0);
+        kill(pid, sigs[k]);
+        int status = 0;
+        waitpid(pid, &status, 0);
+        CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 128 + sigs[k],
+                  "signal %d: exit status %d", sigs[k], WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+        CHECK_MSG(stray_files() == 0, "signal %d: %d files left", sigs[k], stray_files());
+    }
+    unlink(in);
+}
+
 int main(void)
 {
     snprintf(tmpdir, sizeof tmpdir, "/tmp/tessel_test_cli_XXXXXX");
@@ -391,6 +438,7 @@ int main(void)
     test_dropped_points();
     test_sample();
     test_reconstruct_auto();
+    test_interrupt();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf %s", tmpdir);
     if (system(cmd) != 0)

@@ -7,6 +7,7 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -24,7 +25,8 @@ const char cli_common_help[] =
     "                coordinates, bounds included; COPC: only the chunks whose\n"
     "                octree node meets it are decoded)\n"
     "  --help        this text\n"
-    "Exit codes: 0 ok, 1 usage, 2 input error, 3 output error, 4 failure.\n";
+    "Exit codes: 0 ok, 1 usage, 2 input error, 3 output error, 4 failure,\n"
+    "130 / 143 interrupted by SIGINT / SIGTERM (nothing partial left behind).\n";
 
 void cli_error(const char *fmt, ...)
 {
@@ -413,9 +415,29 @@ static void end_stage(cli_progress *p, double now)
     p->items = 0;
 }
 
+volatile sig_atomic_t cli_interrupted;
+
+static void on_signal(int sig) { cli_interrupted = sig; }
+
+void cli_install_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigemptyset(&sa.sa_mask);
+    /* A second signal of the same kind stops at once. */
+    sa.sa_flags = SA_RESETHAND;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+}
+
 static int progress_cb(void *user, const char *stage, double fraction)
 {
     cli_progress *p = user;
+    /* Ctrl-C and SIGTERM cancel the running call at its next progress
+     * report; the command then removes what it was writing. */
+    if (cli_interrupted)
+        return 1;
     if (!p->enabled)
         return 0;
     double now = cli_now();

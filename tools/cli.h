@@ -6,6 +6,7 @@
 
 #include "tessel.h"
 
+#include <signal.h>
 #include <stdbool.h>
 #include <stdio.h>
 
@@ -29,6 +30,13 @@ typedef struct cli_common {
 
 /* A subcommand: argv[0] is the subcommand's name. Returns an exit code. */
 typedef int (*cli_command_fn)(int argc, char **argv);
+
+/* The signal (SIGINT, SIGTERM) that interrupted the command, or 0. The
+ * first one cancels the running library call through the progress
+ * callback (the command removes its partial output and the process exits
+ * with 128 + the signal: 130, 143); a second one stops the process at once. */
+extern volatile sig_atomic_t cli_interrupted;
+void cli_install_signals(void);
 
 /* Prints "tessel: error: MESSAGE" to stderr. */
 void cli_error(const char *fmt, ...)

@@ -31,7 +31,9 @@ static void usage(FILE *out)
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         fprintf(out, "  %-12s %s\n", commands[i].name, commands[i].summary);
     fprintf(out, "\n'tessel COMMAND --help' describes each command.\n"
-                 "Exit codes: 0 ok, 1 usage, 2 input error, 3 output error, 4 failure.\n");
+                 "Exit codes: 0 ok, 1 usage, 2 input error, 3 output error, 4 failure,\n"
+                 "130 / 143 interrupted by SIGINT (Ctrl-C) / SIGTERM (nothing partial is\n"
+                 "left behind).\n");
 }
 
 int main(int argc, char **argv)
@@ -50,8 +52,15 @@ int main(int argc, char **argv)
         return CLI_OK;
     }
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++) {
-        if (strcmp(name, commands[i].name) == 0)
-            return commands[i].run(argc - 1, argv + 1);
+        if (strcmp(name, commands[i].name) == 0) {
+            cli_install_signals();
+            int rc = commands[i].run(argc - 1, argv + 1);
+            if (cli_interrupted) {
+                fprintf(stderr, "tessel: interrupted\n");
+                return 128 + cli_interrupted;
+            }
+            return rc;
+        }
     }
     cli_error("unknown command '%s' (see tessel --help)", name);
     return CLI_USAGE;
