@@ -166,6 +166,16 @@ TESSEL_API tessel_status tessel_mesh_alloc(tessel_mesh *mesh, size_t vertex_coun
                                            int with_rgb);
 TESSEL_API void tessel_mesh_free(tessel_mesh *mesh);
 
+/* World coordinates to a local frame exactly as the readers store them
+ * (docs/formats.md, "the offset rule"): chooses the per-axis offset from
+ * count*3 doubles (world) and writes count*3 floats to xyz (the caller
+ * sizes it), so that offset + xyz is what a reader of the same points gives.
+ * For programs and bindings that hold double coordinates (python/).
+ * TESSEL_ERR_INVALID_ARG, nothing written, when a coordinate is NaN,
+ * infinite or beyond 1e15 in magnitude; TESSEL_ERR_NOMEM. */
+TESSEL_API tessel_status tessel_world_to_local(const double *world, size_t count, float *xyz,
+                                               double offset[3]);
+
 /* ------------------------------------------------------------------------ */
 /* File formats                                                              */
 /* ------------------------------------------------------------------------ */

@@ -230,6 +230,24 @@ static bool point_finite(const double *p)
            fabs(p[2]) <= TSL_MAX_COORD;
 }
 
+tessel_status tessel_world_to_local(const double *world, size_t count, float *xyz,
+                                   double offset[3])
+{
+    if (!offset || (count && (!world || !xyz)))
+        return TESSEL_ERR_INVALID_ARG;
+    for (size_t i = 0; i < count; i++)
+        if (!point_finite(world + 3 * i))
+            return TESSEL_ERR_INVALID_ARG;
+    double off[3];
+    tessel_status st = tsl_choose_offset(world, count, off);
+    if (st != TESSEL_OK)
+        return st;
+    for (size_t j = 0; j < 3 * count; j++)
+        xyz[j] = tsl_local_coord(world[j], off[j % 3]);
+    memcpy(offset, off, sizeof off);
+    return TESSEL_OK;
+}
+
 /* Drops non-finite points (compacting all arrays), fills remap (old index
  * -> new or TESSEL_NONE) when given, chooses the offset and converts xyz to
  * floats in place (b->xyz then holds count*3 floats). On failure (no memory
