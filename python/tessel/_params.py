@@ -113,6 +113,18 @@ def leaves(struct_name, prefix=()):
 
 
 @functools.lru_cache(maxsize=None)
+def _node_paths(struct_name, prefix=()):
+    """Paths of every settable leaf and every nested struct."""
+    out = []
+    for name, kind, ctype, _, _ in FIELDS[struct_name]:
+        if kind == "struct":
+            out.append(prefix + (name,))
+            out.extend(_node_paths(ctype, prefix + (name,)))
+    out.extend(l[0] for l in leaves(struct_name, prefix) if len(l[0]) == len(prefix) + 1)
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=None)
 def _leaf_paths(struct_name):
     return frozenset(l[0] for l in leaves(struct_name))
 
@@ -165,22 +177,23 @@ def resolve(struct_name, kwargs, scopes=None):
     """kwargs -> {path: value}. scopes: the nested structs (path prefixes)
     whose fields may be named alone; None: the whole struct."""
     out = {}
-    all_leaves = [l[0] for l in leaves(struct_name)]
+    nodes = _node_paths(struct_name)
     top = [f[0] for f in FIELDS[struct_name]]
     for key, value in kwargs.items():
-        if "__" in key:
-            path = tuple(key.split("__"))
-        elif key in top:
-            path = (key,)
+        parts = tuple(key.split("__"))
+        if parts[0] in top:
+            path = parts  # from the root: checked by _expand
         else:
-            cands = [p for p in all_leaves if p[-1] == key and
+            # A name or a path's tail, within the scopes: mu, front__k.
+            n = len(parts)
+            cands = [p for p in nodes if p[-n:] == parts and
                      (scopes is None or any(p[:len(s)] == s for s in scopes))]
             if len(cands) > 1:
                 raise TypeError("keyword argument %r is ambiguous: give one of %s"
                                 % (key, ", ".join("__".join(p) for p in cands)))
             if not cands:
-                names = sorted(set(top) | {p[-1] for p in all_leaves} |
-                               {"__".join(p) for p in all_leaves})
+                names = sorted(set(top) | {p[-1] for p in nodes} |
+                               {"__".join(p) for p in nodes})
                 raise TypeError("unexpected keyword argument %r%s" % (key, _suggest(key, names)))
             path = cands[0]
         _expand(struct_name, path, value, key, out)
