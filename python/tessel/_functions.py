@@ -6,7 +6,7 @@ import re
 import numpy as np
 
 from . import _abi, _lib, _params, _png
-from ._geometry import Cloud, Mesh, as_cloud, as_mesh
+from ._geometry import Cloud, Mesh, _Owner, _wrap, as_cloud, as_mesh
 
 byref = ctypes.byref
 lib = _lib.lib
@@ -335,15 +335,23 @@ def normals(points, *, threads=None, progress=None, **params):
     of a Cloud that has one).
 
     **params: tessel_normals_params fields: k (default 16), orient.
-    Returns a new (N, 3) float32 array; the input is not changed.
+    Returns a new (N, 3) float32 array (the library's memory); the input
+    is not changed.
     """
     cloud = as_cloud(points)
     p, _ = _params.build("tessel_normals_params", params, threads=threads)
-    out = np.zeros((len(cloud), 3), dtype=np.float32)
     cs = cloud._struct()
-    cs.normals = out.ctypes.data_as(ctypes.POINTER(ctypes.c_float))
+    # The library allocates the normals (it frees and replaces any it is
+    # given): a struct of our arrays with none, then the new array alone is
+    # handed to an owner that frees it.
+    cs.normals = None
     cb = _lib.Callbacks(progress)
     st = _lib.call(lib.tessel_normals_estimate, (byref(cs), byref(p), byref(cb.struct)), cb)
+    out = None
+    if st == 0:
+        only = _abi.tessel_cloud()
+        only.count, only.normals = cs.count, cs.normals
+        out = _wrap(only.normals, len(cloud), "<f4", _Owner(only, lib.tessel_cloud_free))
     cb.finish(st, "normals")
     return out
 

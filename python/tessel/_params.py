@@ -246,14 +246,15 @@ def build(struct_name, kwargs, scopes=None, threads=None):
     every field named threads unless one was given by path."""
     struct = default(struct_name)
     resolved = resolve(struct_name, kwargs, scopes)
+    assign(struct, struct_name, resolved)
     if threads is not None:
         t = _scalar(threads, ctypes.c_int, "threads")
         if t < 0:
             raise _lib.InvalidArgumentError("threads must be >= 0 (0: OpenMP's default), got %d" % t)
-        for path, *_ in leaves(struct_name):
-            if path[-1] == "threads" and path not in resolved:
-                resolved[path] = t
-    return assign(struct, struct_name, resolved), resolved
+        every = {path: t for path, *_ in leaves(struct_name)
+                 if path[-1] == "threads" and path not in resolved}
+        assign(struct, struct_name, every)
+    return struct, resolved
 
 
 def to_dict(struct, struct_name):
