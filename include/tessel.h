@@ -646,7 +646,16 @@ typedef struct tessel_greedy_params {
     double mu;             /* radius of the sphere of influence as a multiple
                               of m (section 4.1); the one essential
                               parameter. Default 2 (the paper and PCL use
-                              2.5-3; docs/greedy.md), range [1.2, 10] */
+                              2.5-3; docs/greedy.md), range [1.2, 10]; used
+                              when mu_from_sampling is 0 */
+    int mu_from_sampling;  /* 1 (default): mu from the spread of the nearest
+                              distances (their coefficient of variation c
+                              over a sample of the cloud): 2 on even
+                              samples (c <= 0.15), 3 on uniformly random
+                              ones (c >= 0.45, where points come in close
+                              pairs and a sphere of twice the nearest
+                              distance misses neighbours), linear between;
+                              0: mu as given */
     double max_angle;      /* alpha, degrees: consecutive neighbours of R that
                               are farther apart than this (seen from R) are
                               not joined and R stays a boundary point
@@ -750,6 +759,7 @@ typedef struct tessel_recon_summary {
                                     orient_check) */
     size_t flips;                /* diagonals flipped (see flip) */
     double spacing;              /* mean spacing used, world units */
+    double mu;                   /* mu used (see mu_from_sampling) */
     double seconds;              /* wall-clock time of the call */
 } tessel_recon_summary;
 

@@ -324,6 +324,35 @@ static void test_noisy_scan_side(void)
  * - a passed-over point whose triangles around had left memory (covered
  *   cannot see them) still seeded a second sheet: 2 components with
  *   10,000 points and seeds 11 and 12. */
+/* mu from the sampling: 2 on an even sample, 3 on a uniformly random one
+ * of the same sphere, where it closes the surface that mu 2 leaves in
+ * pieces. */
+static void test_mu_from_sampling(void)
+{
+    tessel_greedy_params p = tessel_greedy_params_default();
+    tessel_cloud c;
+    tessel_mesh m;
+    tessel_recon_summary sum;
+    CHECK(surf_sphere(&c, 0.02, 21) == TESSEL_OK);
+    tessel_mesh_report rep = recon("even sphere", &c, &p, &m, &sum);
+    CHECK_MSG(sum.mu == 2.0 && rep.components == 1, "even sphere: mu %g", sum.mu);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+    CHECK(surf_sphere_random(&c, 200000, 22) == TESSEL_OK);
+    rep = recon("random sphere", &c, &p, &m, &sum);
+    CHECK_MSG(sum.mu > 2.9 && rep.components == 1 && rep.boundary_edges * 20000 < rep.edges,
+              "random sphere: mu %g, %zu components, %zu of %zu edges open", sum.mu,
+              rep.components, rep.boundary_edges, rep.edges);
+    tessel_mesh_free(&m);
+    p.mu_from_sampling = 0;
+    rep = recon("random sphere, mu 2", &c, &p, &m, &sum);
+    CHECK(sum.mu == 2.0);
+    printf("random sphere at mu 2: %zu components, %zu boundary edges\n", rep.components,
+           rep.boundary_edges);
+    tessel_mesh_free(&m);
+    tessel_cloud_free(&c);
+}
+
 static void test_random_spheres(void)
 {
     tessel_greedy_params p = tessel_greedy_params_default();
@@ -344,6 +373,8 @@ static void test_random_spheres(void)
         CHECK_MSG(in < 10, "random sphere %d: %zu triangles face inward", (int)seed, in);
         CHECK_MSG(rep.boundary_edges < rep.edges / 1000, "random sphere %d: %zu of %zu edges open",
                   (int)seed, rep.boundary_edges, rep.edges);
+        /* Uniformly random: mu from the sampling about 3 (mu_from_sampling). */
+        CHECK_MSG(sum.mu > 2.9, "random sphere %d: mu %g", (int)seed, sum.mu);
         CHECK(signed_volume(&m) > 0.0);
         tessel_mesh_free(&m);
         tessel_cloud_free(&c);
@@ -929,6 +960,7 @@ int main(void)
     test_closed_surfaces();
     test_open_and_hard();
     test_random_spheres();
+    test_mu_from_sampling();
     test_noisy_scan_side();
     test_deterministic();
     test_duplicates_and_degenerate();

@@ -40,9 +40,9 @@ static const char greedy_help[] =
     "Options:\n"
     "  --method greedy    this method\n"
     "  --mu M             sphere of influence: M times the distance to the\n"
-    "                     nearest neighbour, 1.2..10 (default 2; 2.5-3 for\n"
-    "                     uneven or uniformly random samples, smaller when\n"
-    "                     surfaces come close)\n"
+    "                     nearest neighbour, 1.2..10 (default: from the\n"
+    "                     sampling, 2 on even samples up to 3 on uniformly\n"
+    "                     random ones; smaller when surfaces come close)\n"
     "  --max-angle DEG    neighbours farther apart than DEG around a point are\n"
     "                     not joined (a hole), 60..175 (default 120)\n"
     "  --min-angle DEG    drop neighbours making angles below DEG when that\n"
@@ -110,7 +110,7 @@ static int greedy_option(void *ctx, int argc, char **argv, int *i)
     double lo, hi;
     double *dst;
     if (strcmp(a, "--mu") == 0)
-        dst = &o->p.mu, lo = 1.2, hi = 10.0;
+        dst = &o->p.mu, lo = 1.2, hi = 10.0, o->p.mu_from_sampling = 0;
     else if (strcmp(a, "--max-angle") == 0)
         dst = &o->p.max_angle, lo = 60.0, hi = 175.0;
     else if (strcmp(a, "--min-angle") == 0)
@@ -181,7 +181,7 @@ static int greedy(int argc, char **argv)
                sum.left_untriangulated, sum.triangles, sum.components, sum.boundary_edges,
                sum.seeds, sum.rejected_intersecting, sum.peak_held_triangles, sum.reoriented,
                sum.flips, sum.spacing,
-               o.p.mu, o.p.max_angle, o.p.min_angle,
+               sum.mu, o.p.max_angle, o.p.min_angle,
                o.p.plane == TESSEL_GREEDY_PLANE_AXIS ? "axis" : "pca", t_read, sum.seconds,
                t_write, seconds, rate);
         cli_chosen_json_end();
@@ -192,7 +192,7 @@ static int greedy(int argc, char **argv)
                 "tessel: greedy: %zu of %zu points used, %zu triangles, %zu component%s, "
                 "%zu boundary edges, %zu diagonals flipped (mu %g, spacing %.4g)\n",
                 sum.points_used, n, sum.triangles, sum.components,
-                sum.components == 1 ? "" : "s", sum.boundary_edges, sum.flips, o.p.mu,
+                sum.components == 1 ? "" : "s", sum.boundary_edges, sum.flips, sum.mu,
                 sum.spacing);
         if (left)
             fprintf(stderr,

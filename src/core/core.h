@@ -187,4 +187,21 @@ bool tsl_triangles_intersect(const uint32_t ia[3], const double *pa[3], const ui
  * the queries/s of random order on 10^6 points. */
 void tsl_index_order(const tessel_index *index, uint32_t *order);
 
+/* ---- tiles (src/core/tiles.c) ---- */
+
+/* A point set cut into tiles by recursive median bisection (each part
+ * along the longest side of its box) until each has at most max_points
+ * points; the cut depends on the points and max_points only. */
+typedef struct tsl_tiles {
+    size_t count;      /* tiles */
+    size_t *start;     /* count + 1: tile k's points are ids[start[k] .. start[k + 1]) */
+    uint32_t *ids;     /* the points by tile, in increasing index within a tile */
+    uint32_t *tile_of; /* per point: its tile */
+    float *dcut;       /* per point: distance to the nearest cut bounding its
+                          tile (INFINITY with one tile) */
+} tsl_tiles;
+
+tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_tiles *t);
+void tsl_tiles_free(tsl_tiles *t);
+
 #endif /* TESSEL_CORE_H */

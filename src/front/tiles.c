@@ -36,109 +36,6 @@
  * which starts with their triangles, reports the rest). */
 #define TILE_PROGRESS 0.9
 
-typedef struct tile_key {
-    float c;
-    uint32_t id;
-} tile_key;
-
-typedef struct tile_range {
-    size_t lo, hi; /* the tile's points: ids[lo .. hi) */
-} tile_range;
-
-static inline bool key_less(tile_key a, tile_key b)
-{
-    return a.c < b.c || (a.c == b.c && a.id < b.id);
-}
-
-static int cmp_key(const void *pa, const void *pb)
-{
-    const tile_key *a = pa, *b = pb;
-    return key_less(*a, *b) ? -1 : key_less(*b, *a);
-}
-
-/* Puts the k-th smallest of a[0 .. n) at k, smaller keys before it and
- * larger after (quickselect; keys are distinct through the ids). */
-static void select_key(tile_key *a, size_t n, size_t k)
-{
-    long long lo = 0, hi = (long long)n - 1;
-    for (int rounds = 0; hi > lo; rounds++) {
-        if (rounds == 64) { /* a pathological order: sort the rest */
-            qsort(a + lo, (size_t)(hi - lo + 1), sizeof *a, cmp_key);
-            return;
-        }
-        long long mid = lo + (hi - lo) / 2;
-        tile_key tmp;
-#define SWAP_KEYS(x, y) (tmp = a[x], a[x] = a[y], a[y] = tmp)
-        if (key_less(a[mid], a[lo]))
-            SWAP_KEYS(mid, lo);
-        if (key_less(a[hi], a[lo]))
-            SWAP_KEYS(hi, lo);
-        if (key_less(a[hi], a[mid]))
-            SWAP_KEYS(hi, mid);
-        tile_key pivot = a[mid];
-        long long i = lo - 1, j = hi + 1;
-        for (;;) {
-            do
-                i++;
-            while (key_less(a[i], pivot));
-            do
-                j--;
-            while (key_less(pivot, a[j]));
-            if (i >= j)
-                break;
-            SWAP_KEYS(i, j);
-        }
-#undef SWAP_KEYS
-        if ((long long)k <= j)
-            hi = j;
-        else
-            lo = j + 1;
-    }
-}
-
-/* Cuts ids[lo .. hi) into tiles of at most max_points points; dcut[i]
- * becomes the distance of point i to the nearest cut bounding its tile. */
-static void bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, size_t hi,
-                   size_t max_points, float *dcut, tile_range *tiles, size_t *ntiles)
-{
-    size_t m = hi - lo;
-    if (m <= max_points) {
-        tiles[*ntiles].lo = lo;
-        tiles[*ntiles].hi = hi;
-        (*ntiles)++;
-        return;
-    }
-    float bl[3] = {INFINITY, INFINITY, INFINITY}, bh[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (size_t u = lo; u < hi; u++)
-        for (int c = 0; c < 3; c++) {
-            float x = xyz[3 * (size_t)ids[u] + c];
-            bl[c] = x < bl[c] ? x : bl[c];
-            bh[c] = x > bh[c] ? x : bh[c];
-        }
-    int axis = 0;
-    for (int c = 1; c < 3; c++)
-        if (bh[c] - bl[c] > bh[axis] - bl[axis])
-            axis = c;
-    for (size_t u = 0; u < m; u++) {
-        keys[u].c = xyz[3 * (size_t)ids[lo + u] + axis];
-        keys[u].id = ids[lo + u];
-    }
-    size_t half = m / 2;
-    select_key(keys, m, half);
-    float left = -INFINITY;
-    for (size_t u = 0; u < half; u++)
-        left = keys[u].c > left ? keys[u].c : left;
-    double cut = 0.5 * ((double)left + (double)keys[half].c);
-    for (size_t u = 0; u < m; u++) {
-        ids[lo + u] = keys[u].id;
-        float d = (float)fabs((double)keys[u].c - cut);
-        if (d < dcut[keys[u].id])
-            dcut[keys[u].id] = d;
-    }
-    bisect(xyz, ids, keys, lo, lo + half, max_points, dcut, tiles, ntiles);
-    bisect(xyz, ids, keys, lo + half, hi, max_points, dcut, tiles, ntiles);
-}
-
 /* Progress of the tiles: the calling thread reports the tiles finished
  * plus its current tile's part (the callback is never called from two
  * threads); a cancellation stops every tile. */
@@ -474,7 +371,7 @@ static tessel_status import_mesh(af *s, const uint32_t *tri, size_t count, const
 /* Places the tiles' triangles (tiles[0 .. nt), points ids[range]) in s,
  * less the band along the cuts and the components orient_tiles drops,
  * the rest oriented against each other. */
-static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range, size_t nt,
+static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, size_t nt,
                                  const uint32_t *ids, const float *dcut, double mean_nn,
                                  size_t small)
 {
@@ -500,7 +397,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const tile_range *range
             uint32_t v[3];
             bool keep = true;
             for (int i = 0; i < 3; i++) {
-                v[i] = ids[range[k].lo + a->tri[3 * t + i]];
+                v[i] = ids[range[k] + a->tri[3 * t + i]];
                 keep = keep && !(dcut[v[i]] < band);
             }
             if (!keep) {
@@ -557,41 +454,26 @@ static inline uint32_t tile_holding(const uint32_t *tile_of, const uint32_t v[3]
 tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_nn,
                                const uint32_t *start, size_t nstart, const tessel_callbacks *cb)
 {
-    size_t cap = 2 * (s->n / p->tile_points) + 2, nt = 0;
-    uint32_t *ids = tsl_alloc_array(s->n, sizeof *ids);
-    uint32_t *tile_of = tsl_alloc_array(s->n, sizeof *tile_of);
+    tsl_tiles cut;
+    tessel_status st = tsl_tiles_cut(s->xyz, s->n, p->tile_points, &cut);
+    if (st)
+        return st;
+    size_t cap = cut.count, nt = cut.count;
+    const uint32_t *ids = cut.ids, *tile_of = cut.tile_of;
+    const size_t *range = cut.start;
+    const float *dcut = cut.dcut;
     uint32_t *local = tsl_alloc_array(s->n, sizeof *local);
-    float *dcut = tsl_alloc_array(s->n, sizeof *dcut);
-    tile_key *keys = tsl_alloc_array(s->n, sizeof *keys);
-    tile_range *range = tsl_alloc_array(cap, sizeof *range);
     af *tiles = tsl_calloc_array(cap, sizeof *tiles);
     tessel_status *status = tsl_alloc_array(cap, sizeof *status);
     tile_ctx *ctx = tsl_alloc_array(cap, sizeof *ctx);
     tessel_callbacks *tcb = tsl_alloc_array(cap, sizeof *tcb);
     uint32_t *tstart = tsl_alloc_array(3 * nstart + 1, sizeof *tstart);
     size_t *sfrom = tsl_calloc_array(cap + 1, sizeof *sfrom);
-    tessel_status st = TESSEL_ERR_NOMEM;
-    if (!ids || !tile_of || !local || !dcut || !keys || !range || !tiles || !status || !ctx ||
-        !tcb || !tstart || !sfrom)
+    st = TESSEL_ERR_NOMEM;
+    if (!local || !tiles || !status || !ctx || !tcb || !tstart || !sfrom)
         goto done;
-    for (size_t i = 0; i < s->n; i++) {
-        ids[i] = (uint32_t)i;
-        dcut[i] = INFINITY;
-    }
-    bisect(s->xyz, ids, keys, 0, s->n, p->tile_points, dcut, range, &nt);
-    free(keys);
-    keys = NULL;
-    for (size_t k = 0; k < nt; k++)
-        for (size_t u = range[k].lo; u < range[k].hi; u++)
-            tile_of[ids[u]] = (uint32_t)k;
-    /* Each tile's points in their input order, as one front would see
-     * them (seeds are taken in that order). */
-    for (size_t k = 0; k < nt; k++)
-        local[k] = (uint32_t)range[k].lo;
     for (size_t i = 0; i < s->n; i++)
-        ids[local[tile_of[i]]++] = (uint32_t)i;
-    for (size_t i = 0; i < s->n; i++)
-        local[ids[i]] = (uint32_t)(i - range[tile_of[ids[i]]].lo);
+        local[ids[i]] = (uint32_t)(i - range[tile_of[ids[i]]]);
     /* The starting triangles by tile, in their order, in local ids (those
      * across a cut are left to the front that joins the tiles). */
     for (size_t t = 0; t < nstart; t++) {
@@ -629,7 +511,7 @@ tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_
 #pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(p->threads))
     for (long long kk = 0; kk < count; kk++) {
         size_t k = (size_t)kk;
-        status[k] = tile_front(s, p, ids + range[k].lo, range[k].hi - range[k].lo,
+        status[k] = tile_front(s, p, ids + range[k], range[k + 1] - range[k],
                                (uint32_t)k, tile_of, local, tstart + 3 * sfrom[k],
                                sfrom[k + 1] - sfrom[k], &tcb[k], &tiles[k]);
         atomic_fetch_add(&finished, 1);
@@ -650,12 +532,8 @@ done:
     if (tiles)
         for (size_t k = 0; k < nt; k++)
             tsl_af_free(&tiles[k]);
-    free(ids);
-    free(tile_of);
+    tsl_tiles_free(&cut);
     free(local);
-    free(dcut);
-    free(keys);
-    free(range);
     free(tiles);
     free(status);
     free(ctx);

@@ -1137,6 +1137,7 @@ tessel_greedy_params tessel_greedy_params_default(void)
     tessel_greedy_params p;
     memset(&p, 0, sizeof p);
     p.mu = 2.0;
+    p.mu_from_sampling = 1;
     p.max_angle = 120.0;
     p.min_angle = 0.0;
     p.plane = TESSEL_GREEDY_PLANE_PCA;
@@ -1161,6 +1162,7 @@ tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params 
     g.cloud = cloud;
     g.n = cloud->count;
     g.mu = p.mu;
+    g.mu_from_sampling = p.mu_from_sampling != 0;
     g.cos_alpha = cos(p.max_angle * 3.14159265358979323846 / 180.0);
     g.beta = p.min_angle * 3.14159265358979323846 / 180.0;
     g.max_spacing = p.max_spacing;

@@ -132,6 +132,7 @@ typedef struct gp {
     const tessel_cloud *cloud;
     size_t n;
     double mu, cos_alpha, beta, max_spacing;
+    bool mu_from_sampling; /* mu chosen in tsl_gp_init */
     uint32_t max_hole;
     int plane_axis;
     const tessel_callbacks *cb;

@@ -890,6 +890,90 @@ static tessel_status order_seeds(gp *g)
 }
 
 /* Mean distance to the nearest other point, on an even sample. */
+/* Mean nearest distance over a sample of the points (far outliers left
+ * out), and the coefficient of variation of those distances. */
+/* mu from the sampling (tessel_greedy_params.mu_from_sampling): the median
+ * over a sample of d1 / mean(d1 .. d6), the nearest distance against the
+ * mean of the six nearest, is 0.507 for a uniform random sample (points
+ * come in close pairs), 0.73 for Poisson-disk samples and 0.59-0.88 for
+ * the vertices of scanned meshes, where mu 2 does best (man.ply: 15
+ * components at mu 2, 16-47 at 2.6-3; a uniform random bunny of 10^6
+ * points: 8 components at mu 2, 1 at 2.5-3). */
+#define MU_EVEN 2.0
+#define MU_RANDOM 3.0
+#define RATIO_EVEN 0.58
+#define RATIO_RANDOM 0.51
+#define RATIO_SAMPLE 2048
+
+
+/* d1 / mean(d1 .. d6) at point i, boxes doubling from start up to limit;
+ * NaN with fewer than six neighbours within limit. */
+static tessel_status nearest_ratio(gp *g, uint32_t i, double start, double limit, double *ratio)
+{
+    *ratio = NAN;
+    for (double h = start;; h *= 2.0) {
+        if (h > limit)
+            h = limit;
+        tessel_status s = tsl_gp_scan_box(g, i, h);
+        if (s != TESSEL_OK)
+            return s;
+        double d[6];
+        int n = 0;
+        size_t nb = g->box_count + g->boxd_count;
+        for (size_t k = 0; k < nb; k++) {
+            const gp_box *b = k < g->box_count ? &g->box[k] : &g->boxd[k - g->box_count];
+            double d2 = tsl_dot(b->rel, b->rel);
+            if (!(d2 > 0.0) || d2 > h * h)
+                continue;
+            /* Insertion into the six smallest. */
+            int j = n < 6 ? n++ : 6;
+            while (j > 0 && d[j - 1] > d2) {
+                if (j < 6)
+                    d[j] = d[j - 1];
+                j--;
+            }
+            if (j < 6)
+                d[j] = d2;
+        }
+        if (n == 6) {
+            double m = 0.0;
+            for (int j = 0; j < 6; j++)
+                m += sqrt(d[j]);
+            *ratio = 6.0 * sqrt(d[0]) / m;
+            return TESSEL_OK;
+        }
+        if (h >= limit)
+            return TESSEL_OK;
+    }
+}
+
+/* mu from the median nearest-distance ratio over a sample of the points. */
+static tessel_status mu_from_sampling(gp *g, double spacing, double *mu)
+{
+    size_t k = g->n < RATIO_SAMPLE ? g->n : RATIO_SAMPLE, used = 0;
+    double *r = tsl_alloc_array(k ? k : 1, sizeof *r);
+    if (!r)
+        return TESSEL_ERR_NOMEM;
+    for (size_t i = 0; i < k; i++) {
+        uint32_t idx = (uint32_t)((double)i * (double)g->n / (double)k);
+        double x;
+        tessel_status s = nearest_ratio(g, idx, spacing, 16.0 * spacing, &x);
+        if (s != TESSEL_OK) {
+            free(r);
+            return s;
+        }
+        if (x == x)
+            r[used++] = x;
+    }
+    if (used) {
+        qsort(r, used, sizeof *r, cmp_double);
+        double t = (RATIO_EVEN - r[used / 2]) / (RATIO_EVEN - RATIO_RANDOM);
+        *mu = MU_EVEN + (MU_RANDOM - MU_EVEN) * (t < 0.0 ? 0.0 : t > 1.0 ? 1.0 : t);
+    }
+    free(r);
+    return TESSEL_OK;
+}
+
 static tessel_status estimate_spacing(gp *g, double *spacing)
 {
     size_t k = g->n < 2048 ? g->n : 2048;
@@ -1140,6 +1224,10 @@ tessel_status tsl_gp_init(gp *g)
     }
     g->spacing = spacing;
     g->sum.spacing = spacing;
+    if (g->mu_from_sampling && spacing > 0.0 &&
+        (s = mu_from_sampling(g, spacing, &g->mu)) != TESSEL_OK)
+        return s;
+    g->sum.mu = g->mu;
     g->m_cap = g->max_spacing * spacing;
     g->m_floor = 0.05 * spacing;
     g->ell = 3.0 * spacing;
