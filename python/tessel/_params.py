@@ -197,19 +197,41 @@ def resolve(struct_name, kwargs, scopes=None):
                 raise TypeError("unexpected keyword argument %r%s" % (key, _suggest(key, names)))
             path = cands[0]
         _expand(struct_name, path, value, key, out)
-    # Setting X turns on its use_X switch (viewpoint -> use_viewpoint).
+    # Setting X sets the switch that makes the library use it, as the
+    # command line does: use_X to 1 (viewpoint -> use_viewpoint), X_from_...
+    # to 0 (mu -> mu_from_sampling), unless the switch is given too.
     for path in list(out):
-        switch = path[:-1] + ("use_" + path[-1],)
-        if switch not in out and _resolve_quiet(struct_name, switch):
-            out[switch] = 1
+        parent = path[:-1]
+        sname = struct_name
+        for name in parent:
+            sname = _field(sname, name)[2]
+        for f in FIELDS[sname]:
+            switch = parent + (f[0],)
+            if switch in out or f[1] != "scalar":
+                continue
+            if f[0] == "use_" + path[-1]:
+                out[switch] = 1
+            elif f[0].startswith(path[-1] + "_from_"):
+                out[switch] = 0
+        # Switches whose names do not say what they switch (the command
+        # line sets them the same way).
+        sname = struct_name
+        for i in range(len(path)):
+            rule = _SWITCHES.get((sname, path[i:]))
+            if rule and path[:i] + (rule[0],) not in out:
+                out[path[:i] + (rule[0],)] = rule[1]
+            entry = _field(sname, path[i])
+            if entry is None or entry[1] != "struct":
+                break
+            sname = entry[2]
     return out
 
 
-def _resolve_quiet(struct_name, path):
-    try:
-        return _resolve_path(struct_name, path, "")
-    except TypeError:
-        return None
+# (struct, path of a field inside it) -> (field of the struct to set, value).
+_SWITCHES = {
+    ("tessel_smooth_recon_params", ("simplify", "cluster", "max_diameter")):
+        ("auto_cluster_size", 0),
+}
 
 
 def assign(struct, struct_name, resolved):

@@ -122,6 +122,22 @@ def test_keywords_choose_the_method():
     mesh = tessel.reconstruct(sphere(4000, noise=0.02, seed=4), mu=2.5)
     assert mesh.summary["method"] == "greedy" and mesh.summary["chosen_by"] == "keywords"
     assert "mu" in mesh.summary["reason"]
+
+
+def test_setting_a_field_sets_its_switch():
+    """mu=... turns mu_from_sampling off, viewpoint=... turns use_viewpoint
+    on, as the command line's --mu and --viewpoint do; unless given."""
+    pts = sphere(4000, seed=4)
+    auto_mu = tessel.reconstruct(pts, method="greedy").summary["greedy"]["mu"]
+    assert tessel.reconstruct(pts, mu=2.5).summary["greedy"]["mu"] == 2.5
+    kept = tessel.reconstruct(pts, mu=2.5, mu_from_sampling=1).summary["greedy"]["mu"]
+    assert kept == auto_mu
+    p, _ = tessel._params.build("tessel_reconstruct_params", {"viewpoint": (1, 2, 3)},
+                                [("fixed",)])
+    assert p.fixed.use_viewpoint == 1 and list(p.fixed.viewpoint) == [1, 2, 3]
+    p, _ = tessel._params.build("tessel_reconstruct_params", {"max_diameter": 5},
+                                [("smooth",)])
+    assert p.smooth.auto_cluster_size == 0 and p.smooth.simplify.cluster.max_diameter == 5
     mesh = tessel.reconstruct(fibonacci_sphere(4000), front__k=20, refine={"rounds": 0})
     assert mesh.summary["method"] == "smooth"
     assert tessel.check(mesh)["valid"]
