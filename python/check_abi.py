@@ -81,7 +81,7 @@ def main(argv):
         for f in fields:
             check((name, f[0]) in seen_fields, "%s.%s missing from the layout program"
                   % (name, f[0]))
-    if len(argv) == 3:
+    if len(argv) == 3 and argv[2]:
         lib = ctypes.CDLL(argv[2])
         for fn in abi.FUNCTIONS:
             check(hasattr(lib, fn), "%s is declared in tessel.h but not exported by %s"

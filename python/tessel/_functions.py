@@ -137,7 +137,7 @@ def write(obj, path, **params):
     p, _ = _params.build("tessel_write_params", params)
     bpath = _path(path)
     diag = _abi.tessel_diag()
-    if isinstance(obj, (Mesh, tuple, list)):
+    if isinstance(obj, (Mesh, tuple)):
         mesh = as_mesh(obj, "obj")
         s = mesh._struct()
         st = lib.tessel_mesh_write(byref(s), bpath, byref(p), byref(diag))
@@ -479,7 +479,7 @@ def render(obj, path=None, *, threads=None, **params):
     boundary, point_size, background, front_color, ...
     """
     p, _ = _params.build("tessel_render_params", params, threads=threads)
-    if isinstance(obj, (Mesh, tuple, list)):
+    if isinstance(obj, (Mesh, tuple)):
         ms = as_mesh(obj, "obj")._struct()
         keep = None
     else:

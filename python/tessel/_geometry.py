@@ -280,9 +280,9 @@ class Cloud:
         out += self.offset
         return out
 
-    def __array__(self, dtype=None):
-        p = self.points
-        return p if dtype is None else p.astype(dtype)
+    def __array__(self, dtype=None, copy=None):
+        p = self.points  # always a new array
+        return p if dtype is None else p.astype(dtype, copy=False)
 
     def __repr__(self):
         extra = [s for s, a in (("normals", self.normals), ("colors", self.colors),
@@ -473,7 +473,7 @@ def as_mesh(obj, what="mesh"):
     """A Mesh from a Mesh or a (vertices, faces) pair."""
     if isinstance(obj, Mesh):
         return obj
-    if isinstance(obj, (tuple, list)) and len(obj) == 2:
+    if isinstance(obj, tuple) and len(obj) == 2:
         return Mesh(obj[0], obj[1])
     raise TypeError("%s must be a tessel.Mesh or a (vertices, faces) pair, got %s"
                     % (what, type(obj).__name__))
