@@ -968,10 +968,10 @@ static void test_tiles(void)
                             {"tiled thin box", 3}};
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
         tessel_cloud c;
-        tessel_status st = cases[i].shape == 0   ? surf_sphere(&c, 0.012, 31)
-                           : cases[i].shape == 1 ? surf_torus(&c, 1.0, 0.35, 0.012, 32)
-                           : cases[i].shape == 2 ? surf_plane_hole(&c, 0.012, 33)
-                                                 : surf_thin_box(&c, 0.08, 0.012, 34);
+        tessel_status st = cases[i].shape == 0   ? surf_sphere(&c, 0.02, 31)
+                           : cases[i].shape == 1 ? surf_torus(&c, 1.0, 0.35, 0.02, 32)
+                           : cases[i].shape == 2 ? surf_plane_hole(&c, 0.015, 33)
+                                                 : surf_thin_box(&c, 0.12, 0.02, 34);
         CHECK(st == TESSEL_OK);
         tessel_greedy_params p = tessel_greedy_params_default();
         p.tile_points = c.count / 8 + 1; /* 8 tiles */
