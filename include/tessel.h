@@ -719,6 +719,14 @@ typedef struct tessel_greedy_params {
                               input points. Not with existing triangles. 0:
                               the paper's triangles. Not in the paper;
                               docs/greedy.md. Default 1 */
+    size_t tile_points;    /* with the mesh held (orient_check or flip):
+                              more points than this are cut into tiles of
+                              at most this many, meshed in parallel, and
+                              the seams closed by a front over all points
+                              from the tiles' triangles; the result
+                              depends on this, not on the thread count.
+                              Default 262144; 0: one front */
+    int threads;           /* 0 = OpenMP default (honours OMP_NUM_THREADS) */
 } tessel_greedy_params;
 TESSEL_API tessel_greedy_params tessel_greedy_params_default(void);
 
@@ -760,6 +768,7 @@ typedef struct tessel_recon_summary {
     size_t flips;                /* diagonals flipped (see flip) */
     double spacing;              /* mean spacing used, world units */
     double mu;                   /* mu used (see mu_from_sampling) */
+    size_t tiles;                /* tiles of the first pass (0: one front) */
     double seconds;              /* wall-clock time of the call */
 } tessel_recon_summary;
 

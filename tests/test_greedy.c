@@ -955,12 +955,65 @@ static void test_cli(void)
     tessel_cloud_free(&c);
 }
 
+/* The first pass in tiles: the same kind of surface as one front gives
+ * (closed surfaces closed, the open one with its one border, two close
+ * sheets two pieces), and the same triangles for 1, 2 and 3 threads. */
+static void test_tiles(void)
+{
+    typedef struct {
+        const char *name;
+        int shape;
+    } case_t;
+    const case_t cases[] = {{"tiled sphere", 0}, {"tiled torus", 1}, {"tiled open plane", 2},
+                            {"tiled thin box", 3}};
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        tessel_cloud c;
+        tessel_status st = cases[i].shape == 0   ? surf_sphere(&c, 0.02, 31)
+                           : cases[i].shape == 1 ? surf_torus(&c, 1.0, 0.35, 0.02, 32)
+                           : cases[i].shape == 2 ? surf_plane_hole(&c, 0.015, 33)
+                                                 : surf_thin_box(&c, 0.12, 0.02, 34);
+        CHECK(st == TESSEL_OK);
+        tessel_greedy_params p = tessel_greedy_params_default();
+        p.tile_points = c.count / 8 + 1; /* 8 tiles */
+        tessel_mesh m[3], one;
+        tessel_recon_summary sum;
+        tessel_mesh_report rep = {0};
+        tessel_greedy_params q = p;
+        q.tile_points = 0;
+        tessel_mesh_report whole = recon(cases[i].name, &c, &q, &one, &sum);
+        tessel_mesh_free(&one);
+        for (int t = 0; t < 3; t++) {
+            p.threads = t + 1;
+            rep = recon(cases[i].name, &c, &p, &m[t], &sum);
+        }
+        CHECK_MSG(sum.tiles == 8, "%s: %zu tiles", cases[i].name, sum.tiles);
+        for (int t = 1; t < 3; t++)
+            CHECK_MSG(m[t].triangle_count == m[0].triangle_count &&
+                          !memcmp(m[t].triangles, m[0].triangles,
+                                  3 * m[0].triangle_count * sizeof *m[0].triangles),
+                      "%s: %d threads differ from 1", cases[i].name, t + 1);
+        /* As one front: as many pieces, no more border (the sphere and the
+         * torus closed, the square's border and its hole, the box's few
+         * edges at its corners), no seam left open. */
+        CHECK_MSG(rep.components == whole.components &&
+                      rep.boundary_edges <= whole.boundary_edges &&
+                      rep.boundary_loops <= whole.boundary_loops,
+                  "%s: %zu components, %zu boundary edges in %zu loops (one front: %zu, %zu, %zu)",
+                  cases[i].name, rep.components, rep.boundary_edges, rep.boundary_loops,
+                  whole.components, whole.boundary_edges, whole.boundary_loops);
+        for (int t = 0; t < 3; t++)
+            tessel_mesh_free(&m[t]);
+        tessel_cloud_free(&c);
+    }
+}
+
 int main(void)
 {
     test_closed_surfaces();
     test_open_and_hard();
     test_random_spheres();
     test_mu_from_sampling();
+    test_tiles();
     test_noisy_scan_side();
     test_deterministic();
     test_duplicates_and_degenerate();

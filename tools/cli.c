@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -347,6 +348,14 @@ int cli_parse_in_out(int argc, char **argv, const char *help, cli_common *common
         return -1;
     }
     return 1;
+}
+
+double cli_peak_mib(void)
+{
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0)
+        return 0.0;
+    return (double)ru.ru_maxrss / 1024.0; /* kilobytes on Linux */
 }
 
 double cli_now(void)

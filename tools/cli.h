@@ -135,6 +135,8 @@ void cli_json_string(FILE *out, const char *s);
 
 /* Wall-clock seconds (monotonic). */
 double cli_now(void);
+/* Peak resident memory of the process so far, MiB. */
+double cli_peak_mib(void);
 
 /* Subcommands. */
 int cmd_info(int argc, char **argv);

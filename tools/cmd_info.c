@@ -17,6 +17,12 @@ static bool format_has_faces(tessel_format f)
            f == TESSEL_FORMAT_AUTO;
 }
 
+/* The tiles of the recursive halving into parts of at most max points. */
+static size_t tiles_for(size_t n, size_t max)
+{
+    return n <= max ? 1 : tiles_for(n / 2, max) + tiles_for(n - n / 2, max);
+}
+
 /* st is NULL when the cloud has too few points for statistics. */
 static void print_text(const char *path, tessel_format format, const tessel_cloud *c,
                        size_t triangles, const tessel_cloud_stats *st,
@@ -50,6 +56,11 @@ static void print_text(const char *path, tessel_format format, const tessel_clou
         printf("noise:       %.6g (%.2f spacings; %.2f times the surface spacing %.6g)\n",
                noise->sigma, noise->sigma / st->mean_spacing, noise->noise_ratio,
                noise->surface_spacing);
+    size_t tp = tessel_greedy_params_default().tile_points;
+    if (tp && c->count > tp)
+        printf("tiles:       %zu of at most %zu points (greedy projection meshes them in "
+               "parallel)\n",
+               tiles_for(c->count, tp), tp);
     printf("duplicates:  %zu\n", st->exact_duplicates);
     printf("outliers:    %zu\n", st->outliers);
     printf("nan/inf:     %zu dropped\n", c->dropped_nonfinite);

@@ -176,14 +176,15 @@ static int greedy(int argc, char **argv)
                "\"mu\": %g, "
                "\"max_angle\": %g, \"min_angle\": %g, \"plane\": \"%s\", "
                "\"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
-               "\"write_seconds\": %.6f, \"seconds\": %.6f, \"points_per_second\": %.0f",
+               "\"write_seconds\": %.6f, \"seconds\": %.6f, \"points_per_second\": %.0f, "
+               "\"tiles\": %zu, \"peak_mib\": %.1f",
                n, sum.points_used, sum.left_duplicate, sum.left_isolated, sum.left_closed_in,
                sum.left_untriangulated, sum.triangles, sum.components, sum.boundary_edges,
                sum.seeds, sum.rejected_intersecting, sum.peak_held_triangles, sum.reoriented,
                sum.flips, sum.spacing,
                sum.mu, o.p.max_angle, o.p.min_angle,
                o.p.plane == TESSEL_GREEDY_PLANE_AXIS ? "axis" : "pca", t_read, sum.seconds,
-               t_write, seconds, rate);
+               t_write, seconds, rate, sum.tiles, cli_peak_mib());
         cli_chosen_json_end();
     } else if (!common.quiet) {
         cli_chosen_text();
@@ -215,10 +216,12 @@ static int greedy(int argc, char **argv)
                     "surface\ntessel: hint: for a noisy cloud try --method smooth; for a "
                     "scan from one position, --mode range\n",
                     100.0 * (double)sum.boundary_edges / edges);
+        if (sum.tiles)
+            fprintf(stderr, "tessel: %zu tiles meshed in parallel, seams closed\n", sum.tiles);
         fprintf(stderr,
                 "tessel: wrote %s in %.2f s (read %.2f s, reconstruction %.3f s = %.2fM "
-                "points/s, write %.2f s)\n",
-                out, seconds, t_read, sum.seconds, rate / 1e6, t_write);
+                "points/s, write %.2f s; peak memory %.0f MiB)\n",
+                out, seconds, t_read, sum.seconds, rate / 1e6, t_write, cli_peak_mib());
     }
     return CLI_OK;
 }

@@ -318,14 +318,16 @@ int cmd_reconstruct_fixed(int argc, char **argv)
                "\"triangles_folded\": %zu, \"triangles_nonmanifold\": %zu, "
                "\"poles_closed\": %d, \"triangles\": %zu, \"read_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
                "\"dexel_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f, "
-               "\"denoised\": %d, \"denoise_noise\": %.9g, \"denoise_rms_move\": %.9g",
+               "\"denoised\": %d, \"denoise_noise\": %.9g, \"denoise_rms_move\": %.9g, "
+               "\"peak_mib\": %.1f",
                mode_name(fs.mode), n, fs.representatives, fs.dexels_filled, fs.columns, fs.rows,
                cu, cv, fs.wrap_columns, fs.wrap_rows, fs.axis[0], fs.axis[1], fs.axis[2],
                fs.viewpoint[0], fs.viewpoint[1], fs.viewpoint[2], fs.noise, fs.noise_estimated,
                fs.margin, o.p.max_angle, fs.cells, fs.cells_missing, fs.cells_open,
                fs.triangles_folded, fs.triangles_nonmanifold, fs.poles_closed, fs.triangles,
                t_read, fs.seconds,
-               fs.seconds_dexels, t_write, seconds, denoised, ds.noise, ds.rms_move);
+               fs.seconds_dexels, t_write, seconds, denoised, ds.noise, ds.rms_move,
+               cli_peak_mib());
         cli_chosen_json_end();
     } else if (!common.quiet) {
         cli_chosen_text();

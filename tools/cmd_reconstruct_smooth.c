@@ -283,7 +283,7 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                "\"smooth_seconds\": %.6f, "
                "\"simplify_seconds\": %.6f, \"front_seconds\": %.6f, "
                "\"refine_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
-               "\"write_seconds\": %.6f, \"seconds\": %.6f",
+               "\"write_seconds\": %.6f, \"seconds\": %.6f, \"peak_mib\": %.1f",
                n, s.noise, s.noise_ratio, s.points_used, s.spacing, s.cluster_diameter,
                s.representatives, s.vertices, s.triangles,
                s.border_edges,
@@ -291,7 +291,7 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                s.refine.splits,
                s.refine.flips, t_read, s.seconds_noise, s.seconds_spacing, s.seconds_smooth,
                s.seconds_simplify, s.seconds_front, s.seconds_refine, s.seconds_total,
-               t_write, seconds);
+               t_write, seconds, cli_peak_mib());
         cli_chosen_json_end();
     } else if (!common.quiet) {
         cli_chosen_text();
@@ -323,10 +323,11 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                 s.border_edges);
         fprintf(stderr,
                 "tessel: wrote %s in %.2f s (read %.2f, smooth %.2f, cluster+reduce %.2f, "
-                "triangulate %.2f, refine %.2f, write %.2f; %.2fM points/s)\n",
+                "triangulate %.2f, refine %.2f, write %.2f; %.2fM points/s; peak memory %.0f "
+                "MiB)\n",
                 out, seconds, t_read, s.seconds_smooth, s.seconds_simplify, s.seconds_front,
                 s.seconds_refine, t_write,
-                s.seconds_total > 0 ? (double)n / s.seconds_total / 1e6 : 0.0);
+                s.seconds_total > 0 ? (double)n / s.seconds_total / 1e6 : 0.0, cli_peak_mib());
     }
     return CLI_OK;
 }

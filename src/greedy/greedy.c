@@ -1147,6 +1147,8 @@ tessel_greedy_params tessel_greedy_params_default(void)
     p.existing_count = 0;
     p.orient_check = 1;
     p.flip = 1;
+    p.tile_points = 262144;
+    p.threads = 0;
     return p;
 }
 

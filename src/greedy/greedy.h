@@ -1,10 +1,11 @@
 /* Private declarations of the greedy projection reconstruction (Gopi &
- * Krishnan 2002), shared by its four files:
+ * Krishnan 2002), shared by its five files:
  *   greedy.c  reference points, seeds, the main loop, the API
  *   store.c   dexel array, triangle pool, fans, retirement, set-up
  *   guard.c   exact intersection tests, the free-cone certificate
  *   held.c    with the whole mesh held: regions meshed inside out found
  *             and rebuilt, diagonal flips (mesh/flip.c)
+ *   tiles.c   the first pass in tiles, in parallel, and the seams
  * Not installed. */
 #ifndef TESSEL_GREEDY_H
 #define TESSEL_GREEDY_H
@@ -398,6 +399,15 @@ typedef struct gp_collect {
     size_t count, cap;
 } gp_collect;
 tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count);
+
+/* ---- tiles.c ---- */
+
+/* The first pass in tiles of at most params->tile_points points, in
+ * parallel, then the seams closed by a pass over all points; the triangles
+ * into *all (held). */
+tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                const tessel_callbacks *callbacks, gp_collect *all,
+                                tessel_recon_summary *summary);
 
 /* ---- held.c ---- */
 

@@ -41,6 +41,7 @@ static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary 
                           size_t existing)
 {
     out->triangles += existing;
+    out->tiles = first->tiles;
     out->seeds += first->seeds;
     out->holes_closed += first->holes_closed;
     out->rejected_intersecting += first->rejected_intersecting;
@@ -67,10 +68,11 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
         for (int k = 0; k < 3; k++)
             vp[k] = cloud->viewpoint[k] - cloud->offset[k];
         s = tsl_orient_check_toward(cloud->xyz, cloud->count, all->tris, all->count,
-                                    cloud->has_viewpoint ? NULL : cloud->normals, vp, 0, mark,
+                                    cloud->has_viewpoint ? NULL : cloud->normals, vp, params->threads, mark,
                                     &flipped);
     } else if (s == TESSEL_OK) {
-        s = tsl_orient_check(cloud->xyz, cloud->count, all->tris, all->count, 0, mark, &flipped);
+        s = tsl_orient_check(cloud->xyz, cloud->count, all->tris, all->count, params->threads, mark,
+                             &flipped);
     }
     if (s == TESSEL_OK)
         s = tsl_progress(callbacks, "orientation check", 1.0);
@@ -107,13 +109,16 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
 {
     gp_collect all = {NULL, 0, 0};
     tessel_triangle_sink hold = {tsl_gp_collect_emit, &all};
-    tessel_status s = tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, summary);
+    tessel_status s = params->tile_points && cloud->count > params->tile_points &&
+                              !params->existing_count
+                          ? tsl_gp_tiled_pass(cloud, params, callbacks, &all, summary)
+                          : tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, summary);
     if (s == TESSEL_OK && check)
         s = check_and_repair(cloud, params, callbacks, &all, summary);
     if (s == TESSEL_OK && params->flip) {
         s = tsl_progress(callbacks, "diagonal flips", 0.0);
         if (s == TESSEL_OK)
-            s = tsl_flip_diagonals(cloud->xyz, cloud->count, all.tris, all.count, 0,
+            s = tsl_flip_diagonals(cloud->xyz, cloud->count, all.tris, all.count, params->threads,
                                    &summary->flips);
         if (s == TESSEL_OK)
             s = tsl_progress(callbacks, "diagonal flips", 1.0);

@@ -1,0 +1,164 @@
+/* Greedy projection in tiles: more than tile_points points are cut into
+ * tiles (core/tiles.c), each tile's points meshed by their own front in
+ * parallel, the tiles' triangles near a cut dropped (a front that saw only
+ * one side of the cut made them), and one pass over all points, started
+ * from the rest (the `existing` triangles of tessel_greedy_params), closes
+ * the seams as a front closes any place where two fronts meet. The tiles
+ * depend on the points and tile_points only, so the result does not depend
+ * on the thread count. */
+#include "greedy/greedy.h"
+
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Triangles with a vertex within this many spheres of influence (mu times
+ * the mean spacing) of a cut are dropped: a tile's front placed them
+ * without the points beyond the cut. */
+#define TILE_BAND 1.0
+
+/* Progress of the tiles: the calling thread reports the tiles finished;
+ * a cancellation it hears stops every tile at its next report. */
+typedef struct tile_ctx {
+    const tessel_callbacks *user;
+    size_t tiles;
+    atomic_int *finished, *cancel;
+} tile_ctx;
+
+static int tile_progress(void *data, const char *stage, double fraction)
+{
+    (void)stage;
+    (void)fraction;
+    tile_ctx *c = data;
+    if (omp_get_thread_num() == 0 &&
+        tsl_progress(c->user, "greedy",
+                     0.5 * (double)atomic_load(c->finished) / (double)c->tiles) != TESSEL_OK)
+        atomic_store(c->cancel, 1);
+    return atomic_load(c->cancel);
+}
+
+/* The points ids[0 .. m) of cloud as a cloud of their own (positions,
+ * normals, viewpoint and offset). */
+static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, size_t m,
+                                tessel_cloud *out)
+{
+    tessel_status st = tessel_cloud_alloc(out, m, cloud->normals != NULL, 0);
+    if (st)
+        return st;
+    for (size_t i = 0; i < m; i++) {
+        memcpy(out->xyz + 3 * i, cloud->xyz + 3 * (size_t)ids[i], 3 * sizeof *out->xyz);
+        if (cloud->normals)
+            memcpy(out->normals + 3 * i, cloud->normals + 3 * (size_t)ids[i],
+                   3 * sizeof *out->normals);
+    }
+    memcpy(out->offset, cloud->offset, sizeof out->offset);
+    memcpy(out->viewpoint, cloud->viewpoint, sizeof out->viewpoint);
+    out->has_viewpoint = cloud->has_viewpoint;
+    return TESSEL_OK;
+}
+
+/* One tile's front: its triangles, in the cloud's indices, into *out. */
+static tessel_status tile_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                               const uint32_t *ids, size_t m, const tessel_callbacks *cb,
+                               gp_collect *out, tessel_recon_summary *sum)
+{
+    tessel_cloud sub;
+    tessel_status st = tile_cloud(cloud, ids, m, &sub);
+    if (st)
+        return st;
+    tessel_triangle_sink sink = {tsl_gp_collect_emit, out};
+    st = tsl_gp_pass(&sub, params, "greedy", cb, &sink, sum);
+    tessel_cloud_free(&sub);
+    for (size_t i = 0; st == TESSEL_OK && i < 3 * out->count; i++)
+        out->tris[i] = ids[out->tris[i]];
+    return st;
+}
+
+tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                const tessel_callbacks *callbacks, gp_collect *all,
+                                tessel_recon_summary *summary)
+{
+    tsl_tiles cut;
+    tessel_status st = tsl_tiles_cut(cloud->xyz, cloud->count, params->tile_points, &cut);
+    if (st)
+        return st;
+    size_t nt = cut.count;
+    gp_collect *parts = tsl_calloc_array(nt, sizeof *parts);
+    tessel_recon_summary *sums = tsl_calloc_array(nt, sizeof *sums);
+    tessel_status *status = tsl_alloc_array(nt, sizeof *status);
+    tile_ctx *ctx = tsl_alloc_array(nt, sizeof *ctx);
+    tessel_callbacks *tcb = tsl_alloc_array(nt, sizeof *tcb);
+    uint8_t *touched = tsl_calloc_array(cloud->count, sizeof *touched);
+    gp_collect more = {NULL, 0, 0};
+    st = TESSEL_ERR_NOMEM;
+    if (!parts || !sums || !status || !ctx || !tcb || !touched)
+        goto done;
+    atomic_int cancel, finished;
+    atomic_init(&cancel, 0);
+    atomic_init(&finished, 0);
+    for (size_t k = 0; k < nt; k++) {
+        ctx[k] = (tile_ctx){callbacks, nt, &finished, &cancel};
+        tcb[k] = (tessel_callbacks){tile_progress, NULL, &ctx[k]};
+    }
+    tessel_greedy_params tp = *params;
+    tp.tile_points = 0;
+    long long count = (long long)nt;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(params->threads))
+    for (long long kk = 0; kk < count; kk++) {
+        size_t k = (size_t)kk;
+        status[k] = tile_pass(cloud, &tp, cut.ids + cut.start[k], cut.start[k + 1] - cut.start[k],
+                              &tcb[k], &parts[k], &sums[k]);
+        atomic_fetch_add(&finished, 1);
+    }
+    st = TESSEL_OK;
+    for (size_t k = 0; k < nt && !st; k++)
+        st = status[k];
+    if (st)
+        goto done;
+    /* The tiles' triangles, less those near a cut, in tile order. */
+    double reach = 0.0;
+    for (size_t k = 0; k < nt; k++) {
+        double r = TILE_BAND * sums[k].mu * sums[k].spacing;
+        reach = r > reach ? r : reach;
+    }
+    for (size_t k = 0; k < nt && !st; k++) {
+        const gp_collect *c = &parts[k];
+        for (size_t t = 0; t < c->count && !st; t++) {
+            const uint32_t *v = c->tris + 3 * t;
+            if (cut.dcut[v[0]] < reach || cut.dcut[v[1]] < reach || cut.dcut[v[2]] < reach) {
+                touched[v[0]] = touched[v[1]] = touched[v[2]] = 1;
+                continue;
+            }
+            st = tsl_gp_collect_emit(all, v, 1);
+        }
+    }
+    if (st || (st = tsl_single_fans(cloud->count, all->tris, &all->count, touched)))
+        goto done;
+    /* The seams: one front over all points from those triangles. */
+    tessel_greedy_params sp = tp;
+    sp.existing = all->tris;
+    sp.existing_count = all->count;
+    tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
+    if ((st = tsl_gp_pass(cloud, &sp, "greedy: seams", callbacks, &hold, summary)))
+        goto done;
+    summary->triangles += all->count;
+    for (size_t k = 0; k < nt; k++) {
+        summary->seeds += sums[k].seeds;
+        summary->holes_closed += sums[k].holes_closed;
+        summary->rejected_intersecting += sums[k].rejected_intersecting;
+    }
+    summary->tiles = nt;
+    st = tsl_gp_collect_emit(all, more.tris, more.count);
+done:
+    for (size_t k = 0; parts && k < nt; k++)
+        free(parts[k].tris);
+    free(parts);
+    free(sums);
+    free(status);
+    free(ctx);
+    free(tcb);
+    free(touched);
+    free(more.tris);
+    tsl_tiles_free(&cut);
+    return st;
+}
