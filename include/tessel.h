@@ -407,8 +407,9 @@ typedef struct tessel_normals_params {
 } tessel_normals_params;
 TESSEL_API tessel_normals_params tessel_normals_params_default(void);
 
-/* Estimates unit normals for every point (allocating cloud->normals if
- * NULL, overwriting them otherwise). */
+/* Estimates unit normals for every point. cloud->normals is replaced by a
+ * new array (any previous one is freed), so pointers to the old normals
+ * must not be kept across the call. */
 TESSEL_API tessel_status tessel_normals_estimate(tessel_cloud *cloud,
                                                  const tessel_normals_params *params,
                                                  const tessel_callbacks *callbacks);
