@@ -138,6 +138,15 @@ double cli_now(void);
 /* Peak resident memory of the process so far, MiB. */
 double cli_peak_mib(void);
 
+/* Greedy projection's own options (--mu, --max-angle, --min-angle, --plane,
+ * --max-spacing, --tile-points, --no-flip, --stream, --ascii, --method
+ * greedy), for cli_parse_in_out; tools/cmd_reconstruct.c. */
+typedef struct cli_greedy_opts {
+    tessel_greedy_params p;
+    int ascii;
+} cli_greedy_opts;
+int cli_greedy_option(void *ctx, int argc, char **argv, int *i);
+
 /* Subcommands. */
 int cmd_info(int argc, char **argv);
 int cmd_convert(int argc, char **argv);

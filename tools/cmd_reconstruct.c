@@ -54,20 +54,19 @@ static const char greedy_help[] =
     "                     (default 4)\n"
     "  --no-flip          keep the triangles as the front makes them (the\n"
     "                     paper's), without the diagonal flips\n"
+    "  --tile-points N    above N points the front runs in tiles of at most N\n"
+    "                     points, in parallel, and closes the seams after;\n"
+    "                     the mesh depends on N, not on --threads (default\n"
+    "                     262144; 0: one front)\n"
     "  --stream           write triangles as they are final, without the\n"
     "                     inside-out check and the flips: memory for the\n"
     "                     points and the front only, not the mesh (for the\n"
     "                     largest clouds)\n"
     "  --ascii            write ascii PLY\n\n";
 
-typedef struct greedy_opts {
-    tessel_greedy_params p;
-    int ascii;
-} greedy_opts;
-
-static int greedy_option(void *ctx, int argc, char **argv, int *i)
+int cli_greedy_option(void *ctx, int argc, char **argv, int *i)
 {
-    greedy_opts *o = ctx;
+    cli_greedy_opts *o = ctx;
     const char *a = argv[*i];
     if (strcmp(a, "--ascii") == 0)
         return o->ascii = 1;
@@ -81,11 +80,19 @@ static int greedy_option(void *ctx, int argc, char **argv, int *i)
         return 1;
     }
     if (strcmp(a, "--mu") && strcmp(a, "--max-angle") && strcmp(a, "--min-angle") &&
-        strcmp(a, "--plane") && strcmp(a, "--max-spacing") && strcmp(a, "--method"))
+        strcmp(a, "--plane") && strcmp(a, "--max-spacing") && strcmp(a, "--method") &&
+        strcmp(a, "--tile-points"))
         return 0;
     const char *v = cli_option_value(argc, argv, i);
     if (!v)
         return -1;
+    if (strcmp(a, "--tile-points") == 0) {
+        long n;
+        if (!cli_parse_int(a, v, 0, 1L << 30, &n))
+            return -1;
+        o->p.tile_points = (size_t)n;
+        return 1;
+    }
     if (strcmp(a, "--method") == 0) {
         if (strcmp(v, "greedy") != 0 && strcmp(v, "auto") != 0) {
             cli_error("--method must be auto, greedy or smooth, got '%s'", v);
@@ -140,11 +147,11 @@ static tessel_status run_greedy(const tessel_cloud *cloud, const tessel_callback
 static int greedy(int argc, char **argv)
 {
     cli_common common = {0};
-    greedy_opts o;
+    cli_greedy_opts o;
     memset(&o, 0, sizeof o);
     o.p = tessel_greedy_params_default();
     const char *in = NULL, *out = NULL;
-    int r = cli_parse_in_out(argc, argv, greedy_help, &common, &in, &out, greedy_option, &o);
+    int r = cli_parse_in_out(argc, argv, greedy_help, &common, &in, &out, cli_greedy_option, &o);
     if (r <= 0)
         return r == 0 ? CLI_OK : CLI_USAGE;
     cli_apply_threads(&common);
@@ -260,7 +267,8 @@ static bool is_flag(const char *a)
     return false;
 }
 
-/* Options only one method takes: giving one asks for that method. */
+/* Options only one method takes: giving one asks for that method
+ * (--tile-points, which both take, does not). */
 static bool in_list(const char *a, const char *const *list, size_t n)
 {
     for (size_t i = 0; i < n; i++)
@@ -274,7 +282,7 @@ static const char *const greedy_only[] = {"--mu", "--min-angle", "--plane", "--m
 static const char *const smooth_only[] = {
     "--refine",       "--passes",      "--k",         "--sigma-rho",  "--sigma-w",
     "--sigma-max",    "--n-min",       "--max-diameter", "--max-edge", "--theta",
-    "--theta-step",   "--phi",         "--normal-angle", "--max-hole", "--tile-points",
+    "--theta-step",   "--phi",         "--normal-angle", "--max-hole",
     "--eps",          "--min-edge",    "--spacing",   "--max-noise"};
 #define COUNT(a) (sizeof(a) / sizeof *(a))
 

@@ -1215,6 +1215,16 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
                                         const tessel_triangle_sink *sink,
                                         tessel_recon_summary *summary)
 {
+    return tsl_reconstruct_greedy_with(cloud, params, NULL, callbacks, sink, summary);
+}
+
+tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
+                                          const tessel_greedy_params *params,
+                                          const tsl_gp_tile_runner *runner,
+                                          const tessel_callbacks *callbacks,
+                                          const tessel_triangle_sink *sink,
+                                          tessel_recon_summary *summary)
+{
     double t0 = tsl_seconds();
     if (summary)
         memset(summary, 0, sizeof *summary);
@@ -1240,7 +1250,7 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
     p.flip = p.flip && !p.existing_count;
     tessel_status s;
     if (check || p.flip)
-        s = tsl_gp_held(cloud, &p, check, callbacks, sink, &sum);
+        s = tsl_gp_held(cloud, &p, check, runner, callbacks, sink, &sum);
     else
         s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, &sum);
     if (s != TESSEL_OK)

@@ -402,10 +402,36 @@ tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count
 
 /* ---- tiles.c ---- */
 
-/* The first pass in tiles of at most params->tile_points points, in
- * parallel, then the seams closed by a pass over all points; the triangles
- * into *all (held). */
+/* The tiles of a tiled pass to mesh: parts[k] and sums[k] for every
+ * k < count, each tile by tsl_gp_tile_mesh. */
+typedef struct tsl_gp_tiles_job {
+    const tessel_cloud *cloud;
+    const tessel_greedy_params *params; /* tile_points 0 */
+    const tsl_tiles *cut;
+    size_t count;
+    const tessel_callbacks *callbacks;
+    gp_collect *parts;
+    tessel_recon_summary *sums;
+} tsl_gp_tiles_job;
+
+/* Who meshes the tiles: NULL, this process's threads; the MPI runner
+ * (src/mpi/) spreads them over processes and shares the results. A tile's
+ * triangles depend on the tile alone, so any runner gives the same mesh. */
+typedef struct tsl_gp_tile_runner {
+    tessel_status (*run)(void *ctx, const tsl_gp_tiles_job *job);
+    void *ctx;
+} tsl_gp_tile_runner;
+
+/* Tile k of job on the calling thread: job->parts[k] (triangles in the
+ * cloud's indices) and job->sums[k]. */
+tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
+                               const tessel_callbacks *cb);
+
+/* The first pass in tiles of at most params->tile_points points, meshed
+ * by runner, then the seams closed by a pass over all points; the
+ * triangles into *all (held). */
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, gp_collect *all,
                                 tessel_recon_summary *summary);
 
@@ -416,8 +442,18 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
  * pass; then, when params->flip, the diagonal flips; then all sent to
  * sink. */
 tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                          bool check, const tessel_callbacks *callbacks,
+                          bool check, const tsl_gp_tile_runner *runner,
+                          const tessel_callbacks *callbacks,
                           const tessel_triangle_sink *sink, tessel_recon_summary *summary);
+
+/* tessel_reconstruct_greedy with the tiles meshed by runner (NULL: this
+ * process's threads). */
+tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
+                                          const tessel_greedy_params *params,
+                                          const tsl_gp_tile_runner *runner,
+                                          const tessel_callbacks *callbacks,
+                                          const tessel_triangle_sink *sink,
+                                          tessel_recon_summary *summary);
 
 /* ---- store.c ---- */
 

@@ -104,14 +104,15 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
 }
 
 tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                          bool check, const tessel_callbacks *callbacks,
+                          bool check, const tsl_gp_tile_runner *runner,
+                          const tessel_callbacks *callbacks,
                           const tessel_triangle_sink *sink, tessel_recon_summary *summary)
 {
     gp_collect all = {NULL, 0, 0};
     tessel_triangle_sink hold = {tsl_gp_collect_emit, &all};
     tessel_status s = params->tile_points && cloud->count > params->tile_points &&
                               !params->existing_count
-                          ? tsl_gp_tiled_pass(cloud, params, callbacks, &all, summary)
+                          ? tsl_gp_tiled_pass(cloud, params, runner, callbacks, &all, summary)
                           : tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, summary);
     if (s == TESSEL_OK && check)
         s = check_and_repair(cloud, params, callbacks, &all, summary);

@@ -57,24 +57,62 @@ static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, 
     return TESSEL_OK;
 }
 
-/* One tile's front: its triangles, in the cloud's indices, into *out. */
-static tessel_status tile_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                               const uint32_t *ids, size_t m, const tessel_callbacks *cb,
-                               gp_collect *out, tessel_recon_summary *sum)
+tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
+                               const tessel_callbacks *cb)
 {
+    const uint32_t *ids = job->cut->ids + job->cut->start[k];
+    size_t m = job->cut->start[k + 1] - job->cut->start[k];
+    gp_collect *out = &job->parts[k];
     tessel_cloud sub;
-    tessel_status st = tile_cloud(cloud, ids, m, &sub);
+    tessel_status st = tile_cloud(job->cloud, ids, m, &sub);
     if (st)
         return st;
     tessel_triangle_sink sink = {tsl_gp_collect_emit, out};
-    st = tsl_gp_pass(&sub, params, "greedy", cb, &sink, sum);
+    st = tsl_gp_pass(&sub, job->params, "greedy", cb, &sink, &job->sums[k]);
     tessel_cloud_free(&sub);
     for (size_t i = 0; st == TESSEL_OK && i < 3 * out->count; i++)
         out->tris[i] = ids[out->tris[i]];
     return st;
 }
 
+/* The default runner: the tiles on this process's threads, progress
+ * reported by the calling thread. */
+static tessel_status run_threads(void *unused, const tsl_gp_tiles_job *job)
+{
+    (void)unused;
+    size_t nt = job->count;
+    tessel_status *status = tsl_alloc_array(nt, sizeof *status);
+    tile_ctx *ctx = tsl_alloc_array(nt, sizeof *ctx);
+    tessel_callbacks *tcb = tsl_alloc_array(nt, sizeof *tcb);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!status || !ctx || !tcb)
+        goto done;
+    atomic_int cancel, finished;
+    atomic_init(&cancel, 0);
+    atomic_init(&finished, 0);
+    for (size_t k = 0; k < nt; k++) {
+        ctx[k] = (tile_ctx){job->callbacks, nt, &finished, &cancel};
+        tcb[k] = (tessel_callbacks){tile_progress, NULL, &ctx[k]};
+    }
+    long long count = (long long)nt;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(job->params->threads))
+    for (long long kk = 0; kk < count; kk++) {
+        size_t k = (size_t)kk;
+        status[k] = tsl_gp_tile_mesh(job, k, &tcb[k]);
+        atomic_fetch_add(&finished, 1);
+    }
+    st = TESSEL_OK;
+    for (size_t k = 0; k < nt && !st; k++)
+        st = status[k];
+done:
+    free(status);
+    free(ctx);
+    free(tcb);
+    return st;
+}
+
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, gp_collect *all,
                                 tessel_recon_summary *summary)
 {
@@ -85,34 +123,15 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     size_t nt = cut.count;
     gp_collect *parts = tsl_calloc_array(nt, sizeof *parts);
     tessel_recon_summary *sums = tsl_calloc_array(nt, sizeof *sums);
-    tessel_status *status = tsl_alloc_array(nt, sizeof *status);
-    tile_ctx *ctx = tsl_alloc_array(nt, sizeof *ctx);
-    tessel_callbacks *tcb = tsl_alloc_array(nt, sizeof *tcb);
     uint8_t *touched = tsl_calloc_array(cloud->count, sizeof *touched);
     gp_collect more = {NULL, 0, 0};
     st = TESSEL_ERR_NOMEM;
-    if (!parts || !sums || !status || !ctx || !tcb || !touched)
+    if (!parts || !sums || !touched)
         goto done;
-    atomic_int cancel, finished;
-    atomic_init(&cancel, 0);
-    atomic_init(&finished, 0);
-    for (size_t k = 0; k < nt; k++) {
-        ctx[k] = (tile_ctx){callbacks, nt, &finished, &cancel};
-        tcb[k] = (tessel_callbacks){tile_progress, NULL, &ctx[k]};
-    }
     tessel_greedy_params tp = *params;
     tp.tile_points = 0;
-    long long count = (long long)nt;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(params->threads))
-    for (long long kk = 0; kk < count; kk++) {
-        size_t k = (size_t)kk;
-        status[k] = tile_pass(cloud, &tp, cut.ids + cut.start[k], cut.start[k + 1] - cut.start[k],
-                              &tcb[k], &parts[k], &sums[k]);
-        atomic_fetch_add(&finished, 1);
-    }
-    st = TESSEL_OK;
-    for (size_t k = 0; k < nt && !st; k++)
-        st = status[k];
+    tsl_gp_tiles_job job = {cloud, &tp, &cut, nt, callbacks, parts, sums};
+    st = runner ? runner->run(runner->ctx, &job) : run_threads(NULL, &job);
     if (st)
         goto done;
     /* The tiles' triangles, less those near a cut, in tile order. */
@@ -154,9 +173,6 @@ done:
         free(parts[k].tris);
     free(parts);
     free(sums);
-    free(status);
-    free(ctx);
-    free(tcb);
     free(touched);
     free(more.tris);
     tsl_tiles_free(&cut);

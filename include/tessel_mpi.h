@@ -1,0 +1,44 @@
+/* tessel over MPI: the tiles of a reconstruction spread over the processes
+ * of a communicator. Built when CMake finds MPI (library tessel_mpi, program
+ * tessel-mpi); see docs/mpi.md.
+ *
+ * Every process of the communicator calls each function with the same
+ * arguments (collective calls). The result is the same on every process and
+ * byte for byte what tessel_reconstruct_greedy gives in one process, for any
+ * number of processes and threads. */
+#ifndef TESSEL_MPI_H
+#define TESSEL_MPI_H
+
+#include <mpi.h>
+
+#include "tessel.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Sends root's cloud (positions, normals, colours, offset, organization and
+ * viewpoint) to every process of comm; the others' *cloud must be empty
+ * ({0}) and receive a copy they free with tessel_cloud_free. status is
+ * root's status on entry (whether its cloud is valid, e.g. its read): a
+ * failure there is returned on every process, which then keeps nothing. */
+TESSEL_API tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_status status,
+                                                tessel_cloud *cloud);
+
+/* tessel_reconstruct_greedy with the tiles (tessel_greedy_params.tile_points)
+ * meshed by all processes of comm, tile k by process k mod size, each with
+ * params->threads threads. Each process gets every triangle in sink; give
+ * the other processes a sink that discards them when one writes the file.
+ * A failure on any process (out of memory, a cancellation) is returned on
+ * every process. */
+TESSEL_API tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
+                                                       const tessel_greedy_params *params,
+                                                       const tessel_callbacks *callbacks,
+                                                       const tessel_triangle_sink *sink,
+                                                       tessel_recon_summary *summary);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
