@@ -102,13 +102,14 @@ static int reconstruct(int argc, char **argv, int rank, int procs)
     tessel_cloud cloud = {0};
     int rc = rank == 0 ? cli_read_cloud(in, &cloud, 3, "a surface", &common) : CLI_OK;
     double t_read = cli_now() - t0;
-    tessel_status st =
-        tessel_mpi_cloud_share(MPI_COMM_WORLD, 0, rc == CLI_OK ? TESSEL_OK : TESSEL_ERR_IO,
-                               &cloud);
+    /* Every process exits with process 0's code for its input. */
+    MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (rc != CLI_OK)
+        return rc;
+    tessel_status st = tessel_mpi_cloud_share(MPI_COMM_WORLD, 0, TESSEL_OK, &cloud);
     if (st != TESSEL_OK) {
-        if (rank != 0 || rc == CLI_OK)
-            cli_error("%s: could not share the cloud: %s", in, tessel_status_str(st));
-        return rc != CLI_OK ? rc : CLI_FAILURE;
+        cli_error("%s: could not share the cloud: %s", in, tessel_status_str(st));
+        return CLI_FAILURE;
     }
     double t_share = cli_now() - t0 - t_read;
     tessel_mesh_writer *writer = NULL;

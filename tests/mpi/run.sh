@@ -1,0 +1,73 @@
+#!/bin/sh
+# tessel-mpi against tessel: the same bytes for -np 1..4 and any thread
+# count; a failure on input or output stops every process with a message
+# and leaves no file. Usage: run.sh BUILD_DIR MPIEXEC [MPIEXEC_FLAGS...]
+set -u
+build=$1
+shift
+here=$(cd "$(dirname "$0")" && pwd)
+cloud=$here/../../data/bunny.ply
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT INT TERM
+fails=0
+check() { # name, condition exit status
+    if [ "$2" -eq 0 ]; then echo "ok   $1"; else echo "FAIL $1"; fails=$((fails + 1)); fi
+}
+run_mpi() { # np, args...
+    np=$1
+    shift
+    # Open MPI: root in CI containers, more processes than cores.
+    flags="--oversubscribe --allow-run-as-root"
+    "$MPIEXEC" $flags -np "$np" "$build/tessel-mpi" "$@" >"$work/out" 2>"$work/err"
+}
+MPIEXEC=$1
+
+# Tiles of 8192 points: the bundled 37,706-point bunny makes 8 of them.
+"$build/tessel" reconstruct "$cloud" "$work/ref.ply" --method greedy --tile-points 8192 \
+    --quiet
+check "tessel writes the reference" $?
+"$build/tessel" check "$work/ref.ply" --json >"$work/check.json"
+grep -q '"valid": true' "$work/check.json"
+check "the reference is valid (manifold, oriented, no self-intersection)" $?
+for np in 1 2 3 4; do
+    for t in 1 2; do
+        run_mpi "$np" reconstruct "$cloud" "$work/m.ply" --tile-points 8192 --threads "$t" \
+            --quiet
+        st=$?
+        cmp -s "$work/ref.ply" "$work/m.ply"
+        check "-np $np --threads $t: exit $st, the same bytes as tessel" $(( $? + st ))
+        rm -f "$work/m.ply"
+    done
+done
+# One tile (the default tile size): every process meshes it whole.
+"$build/tessel" reconstruct "$cloud" "$work/one.ply" --method greedy --quiet
+run_mpi 3 reconstruct "$cloud" "$work/m.ply" --quiet
+st=$?
+cmp -s "$work/one.ply" "$work/m.ply"
+check "-np 3, one tile: the same bytes" $(( $? + st ))
+
+# Failures: every process stops, the message names the file, no output.
+run_mpi 3 reconstruct "$work/missing.ply" "$work/f.ply"
+st=$?
+[ "$st" -eq 2 ] && grep -q "missing.ply" "$work/err" && [ ! -e "$work/f.ply" ]
+check "a missing input: exit $st, named, no output" $?
+printf 'ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1\n' \
+    >"$work/cut.ply"
+run_mpi 2 reconstruct "$work/cut.ply" "$work/f.ply"
+st=$?
+[ "$st" -eq 2 ] && grep -q "cut.ply" "$work/err" && [ ! -e "$work/f.ply" ]
+check "a truncated input: exit $st, named, no output" $?
+run_mpi 2 reconstruct "$cloud" "$work/no/such/dir/f.ply"
+st=$?
+[ "$st" -eq 3 ] && grep -q "f.ply" "$work/err"
+check "an output that cannot be written: exit $st, named" $?
+run_mpi 2 reconstruct "$cloud" "$work/f.ply" --mu 50
+st=$?
+[ "$st" -eq 1 ] && [ ! -e "$work/f.ply" ]
+check "a bad option: exit $st (usage), no output" $?
+left=$(ls -A "$work" | grep -c '^\.') || true
+[ "$left" -eq 0 ]
+check "no temporary files left" $?
+
+echo "$fails failed"
+[ "$fails" -eq 0 ]
