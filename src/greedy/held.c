@@ -45,6 +45,7 @@ static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary 
     out->seeds += first->seeds;
     out->holes_closed += first->holes_closed;
     out->rejected_intersecting += first->rejected_intersecting;
+    out->flips += first->flips;
 }
 
 /* Step 1: the orientation check (by ray parity, or by the points' normals
@@ -117,12 +118,15 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
     if (s == TESSEL_OK && check)
         s = check_and_repair(cloud, params, callbacks, &all, summary);
     if (s == TESSEL_OK && params->flip) {
+        /* Added to the tiles' flips, when there were tiles. */
+        size_t flips = 0;
         s = tsl_progress(callbacks, "diagonal flips", 0.0);
         if (s == TESSEL_OK)
             s = tsl_flip_diagonals(cloud->xyz, cloud->count, all.tris, all.count, params->threads,
-                                   &summary->flips);
+                                   &flips);
         if (s == TESSEL_OK)
             s = tsl_progress(callbacks, "diagonal flips", 1.0);
+        summary->flips += flips;
     }
     if (s == TESSEL_OK && all.count > summary->peak_held_triangles)
         summary->peak_held_triangles = all.count;

@@ -1,6 +1,6 @@
 /* Greedy projection in tiles: more than tile_points points are cut into
  * tiles (core/tiles.c), each tile's points meshed by their own front in
- * parallel, the tiles' triangles near a cut dropped (a front that saw only
+ * parallel and its diagonals flipped, the tiles' triangles near a cut dropped (a front that saw only
  * one side of the cut made them), and one pass over all points, started
  * from the rest (the `existing` triangles of tessel_greedy_params), closes
  * the seams as a front closes any place where two fronts meet. The tiles
@@ -69,6 +69,11 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
         return st;
     tessel_triangle_sink sink = {tsl_gp_collect_emit, out};
     st = tsl_gp_pass(&sub, job->params, "greedy", cb, &sink, &job->sums[k]);
+    /* The tile's flips here, on one thread, leave the pass over the whole
+     * mesh only the seams and repairs to flip. */
+    if (st == TESSEL_OK && job->params->flip)
+        st = tsl_flip_diagonals(sub.xyz, sub.count, out->tris, out->count, 1,
+                                &job->sums[k].flips);
     tessel_cloud_free(&sub);
     for (size_t i = 0; st == TESSEL_OK && i < 3 * out->count; i++)
         out->tris[i] = ids[out->tris[i]];
@@ -165,6 +170,7 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         summary->seeds += sums[k].seeds;
         summary->holes_closed += sums[k].holes_closed;
         summary->rejected_intersecting += sums[k].rejected_intersecting;
+        summary->flips += sums[k].flips;
     }
     summary->tiles = nt;
     st = tsl_gp_collect_emit(all, more.tris, more.count);
