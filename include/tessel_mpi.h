@@ -3,9 +3,9 @@
  * tessel-mpi); see docs/mpi.md.
  *
  * Every process of the communicator calls each function with the same
- * arguments (collective calls). The result is the same on every process and
- * byte for byte what tessel_reconstruct_greedy gives in one process, for any
- * number of processes and threads. */
+ * arguments (collective calls). The result is byte for byte what
+ * tessel_reconstruct_greedy gives in one process, for any number of
+ * processes and threads. */
 #ifndef TESSEL_MPI_H
 #define TESSEL_MPI_H
 
@@ -27,9 +27,12 @@ TESSEL_API tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_
 
 /* tessel_reconstruct_greedy with the tiles (tessel_greedy_params.tile_points)
  * meshed by all processes of comm, tile k by process k mod size, each with
- * params->threads threads. Each process gets every triangle in sink; give
- * the other processes a sink that discards them when one writes the file.
- * A failure on any process (out of memory, a cancellation) is returned on
+ * params->threads threads, and sent to process 0, which joins them (seams,
+ * orientation check, flips) with params->threads threads while the others
+ * wait without spinning. Only process 0's sink receives triangles and only
+ * its summary is filled; the others may pass a sink that discards. A cloud
+ * of at most tile_points points is one tile: process 0 meshes it alone. A
+ * failure on any process (out of memory, a cancellation) is returned on
  * every process. */
 TESSEL_API tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
                                                        const tessel_greedy_params *params,

@@ -1218,6 +1218,32 @@ tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,
     return tsl_reconstruct_greedy_with(cloud, params, NULL, callbacks, sink, summary);
 }
 
+/* Whether params (NULL: the defaults) are valid for cloud. */
+static tessel_status params_status(const tessel_cloud *cloud, const tessel_greedy_params *p)
+{
+    if (!cloud || (cloud->count && !cloud->xyz))
+        return TESSEL_ERR_INVALID_ARG;
+    if (!(p->mu >= 1.2 && p->mu <= 10.0) || !(p->max_angle >= 60.0 && p->max_angle <= 175.0) ||
+        !(p->min_angle >= 0.0 && p->min_angle <= 45.0) ||
+        !(p->max_spacing >= 1.0 && p->max_spacing <= 1000.0) || p->max_hole > 1000 ||
+        (p->plane != TESSEL_GREEDY_PLANE_PCA && p->plane != TESSEL_GREEDY_PLANE_AXIS) ||
+        (p->existing_count && !p->existing) || (p->orient_check != 0 && p->orient_check != 1) ||
+        (p->flip != 0 && p->flip != 1))
+        return TESSEL_ERR_INVALID_ARG;
+    if (cloud->count >= NONE)
+        return TESSEL_ERR_LIMIT;
+    if (cloud->count < 3)
+        return TESSEL_ERR_TOO_FEW_POINTS;
+    return TESSEL_OK;
+}
+
+bool tsl_gp_tiled(const tessel_cloud *cloud, const tessel_greedy_params *params)
+{
+    tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
+    return params_status(cloud, &p) == TESSEL_OK && (p.orient_check || p.flip) &&
+           !p.existing_count && p.tile_points && cloud->count > p.tile_points;
+}
+
 tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
                                           const tessel_greedy_params *params,
                                           const tsl_gp_tile_runner *runner,
@@ -1229,19 +1255,11 @@ tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
     if (summary)
         memset(summary, 0, sizeof *summary);
     tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
-    if (!cloud || !sink || !sink->emit || (cloud->count && !cloud->xyz))
+    if (!sink || !sink->emit)
         return TESSEL_ERR_INVALID_ARG;
-    if (!(p.mu >= 1.2 && p.mu <= 10.0) || !(p.max_angle >= 60.0 && p.max_angle <= 175.0) ||
-        !(p.min_angle >= 0.0 && p.min_angle <= 45.0) ||
-        !(p.max_spacing >= 1.0 && p.max_spacing <= 1000.0) || p.max_hole > 1000 ||
-        (p.plane != TESSEL_GREEDY_PLANE_PCA && p.plane != TESSEL_GREEDY_PLANE_AXIS) ||
-        (p.existing_count && !p.existing) || (p.orient_check != 0 && p.orient_check != 1) ||
-        (p.flip != 0 && p.flip != 1))
-        return TESSEL_ERR_INVALID_ARG;
-    if (cloud->count >= NONE)
-        return TESSEL_ERR_LIMIT;
-    if (cloud->count < 3)
-        return TESSEL_ERR_TOO_FEW_POINTS;
+    tessel_status valid = params_status(cloud, &p);
+    if (valid != TESSEL_OK)
+        return valid;
     tessel_recon_summary sum;
     memset(&sum, 0, sizeof sum);
     /* With existing triangles the caller holds the mesh, and checks it

@@ -422,6 +422,17 @@ typedef struct tsl_gp_tile_runner {
     void *ctx;
 } tsl_gp_tile_runner;
 
+/* Whether tessel_reconstruct_greedy cuts cloud into tiles with params
+ * (valid, held mode, no existing triangles, more than tile_points points). */
+bool tsl_gp_tiled(const tessel_cloud *cloud, const tessel_greedy_params *params);
+
+/* What a process that only meshes tiles for another does: the same tiles
+ * as tsl_gp_tiled_pass cuts, handed to runner (which meshes its share and
+ * sends it on); nothing is kept. */
+tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                const tsl_gp_tile_runner *runner,
+                                const tessel_callbacks *callbacks);
+
 /* Tile k of job on the calling thread: job->parts[k] (triangles in the
  * cloud's indices) and job->sums[k]. */
 tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,

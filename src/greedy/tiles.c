@@ -116,6 +116,32 @@ done:
     return st;
 }
 
+tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                const tsl_gp_tile_runner *runner,
+                                const tessel_callbacks *callbacks)
+{
+    tsl_tiles cut;
+    tessel_status st = tsl_tiles_cut(cloud->xyz, cloud->count, params->tile_points, &cut);
+    if (st)
+        return st;
+    size_t nt = cut.count;
+    gp_collect *parts = tsl_calloc_array(nt, sizeof *parts);
+    tessel_recon_summary *sums = tsl_calloc_array(nt, sizeof *sums);
+    st = TESSEL_ERR_NOMEM;
+    if (parts && sums) {
+        tessel_greedy_params tp = *params;
+        tp.tile_points = 0;
+        tsl_gp_tiles_job job = {cloud, &tp, &cut, nt, callbacks, parts, sums};
+        st = runner->run(runner->ctx, &job);
+    }
+    for (size_t k = 0; parts && k < nt; k++)
+        free(parts[k].tris);
+    free(parts);
+    free(sums);
+    tsl_tiles_free(&cut);
+    return st;
+}
+
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, gp_collect *all,

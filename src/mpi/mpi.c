@@ -1,14 +1,15 @@
 /* tessel over MPI (include/tessel_mpi.h, docs/mpi.md). The cloud goes from
  * one process to all; greedy projection's tiles (greedy/tiles.c) are meshed
- * tile k by process k mod size, and every process receives every tile's
- * triangles, so each closes the seams, checks the orientation and flips the
- * diagonals exactly as one process does: the same bytes for any number of
- * processes. Collective failures: a status is agreed (MPI_Allreduce, the
- * largest code) before any step that the processes must take together. */
+ * tile k by process k mod size and sent to process 0, which closes the
+ * seams, checks the orientation and flips the diagonals exactly as one
+ * process does: the same bytes for any number of processes. Failures: a
+ * status is agreed (MPI_Allreduce, the largest code) before any step that
+ * the processes take together, and process 0's final status goes to all. */
 #include <mpi.h>
 
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "greedy/greedy.h"
 #include "tessel_mpi.h"
@@ -101,6 +102,7 @@ tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_status stat
 typedef struct ranks {
     MPI_Comm comm;
     int rank, size;
+    bool joined; /* the runner was called (it took part in the tiles' steps) */
 } ranks;
 
 /* This process's tiles, on its threads (no progress from inside: the
@@ -125,53 +127,101 @@ static tessel_status mesh_mine(const ranks *r, const tsl_gp_tiles_job *job)
     return st;
 }
 
-/* Every tile's triangles and summary from its process to all. */
-static tessel_status share_tiles(const ranks *r, const tsl_gp_tiles_job *job)
+static int owner(const ranks *r, size_t k)
+{
+    return (int)(k % (size_t)r->size);
+}
+
+/* Point-to-point in pieces of at most PIECE elements (the same pieces on
+ * both sides). */
+static void send_array(const ranks *r, const void *buf, size_t count, MPI_Datatype type,
+                       size_t size)
+{
+    for (size_t i = 0; i < count; i += PIECE) {
+        size_t n = count - i < PIECE ? count - i : PIECE;
+        MPI_Send((const char *)buf + i * size, (int)n, type, 0, 0, r->comm);
+    }
+}
+
+static void recv_array(const ranks *r, int from, void *buf, size_t count, MPI_Datatype type,
+                       size_t size)
+{
+    for (size_t i = 0; i < count; i += PIECE) {
+        size_t n = count - i < PIECE ? count - i : PIECE;
+        MPI_Recv((char *)buf + i * size, (int)n, type, from, 0, r->comm, MPI_STATUS_IGNORE);
+    }
+}
+
+/* Every tile's triangles and summary from its process to process 0. */
+static tessel_status gather_tiles(const ranks *r, const tsl_gp_tiles_job *job)
 {
     size_t nt = job->count;
     uint64_t *counts = tsl_calloc_array(nt, sizeof *counts);
-    tessel_status mine = counts ? TESSEL_OK : TESSEL_ERR_NOMEM;
-    if (agree(r->comm, mine) != TESSEL_OK) {
+    if (agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM) != TESSEL_OK) {
         free(counts);
         return TESSEL_ERR_NOMEM;
     }
     for (size_t k = (size_t)r->rank; k < nt; k += (size_t)r->size)
         counts[k] = job->parts[k].count;
     MPI_Allreduce(MPI_IN_PLACE, counts, (int)nt, MPI_UINT64_T, MPI_SUM, r->comm);
-    for (size_t k = 0; k < nt && mine == TESSEL_OK; k++) {
+    tessel_status mine = TESSEL_OK;
+    for (size_t k = 0; r->rank == 0 && k < nt && mine == TESSEL_OK; k++) {
         gp_collect *c = &job->parts[k];
-        if (k % (size_t)r->size == (size_t)r->rank || !counts[k])
+        if (owner(r, k) == 0 || !counts[k])
             continue;
         c->tris = tsl_alloc_array((size_t)counts[k], 3 * sizeof *c->tris);
-        c->count = c->cap = (size_t)counts[k];
-        if (!c->tris) {
-            c->count = c->cap = 0;
-            mine = TESSEL_ERR_NOMEM;
-        }
+        c->count = c->cap = c->tris ? (size_t)counts[k] : 0;
+        mine = c->tris ? TESSEL_OK : TESSEL_ERR_NOMEM;
     }
     free(counts);
     if ((mine = agree(r->comm, mine)) != TESSEL_OK)
         return mine;
     for (size_t k = 0; k < nt; k++) {
-        int owner = (int)(k % (size_t)r->size);
+        int from = owner(r, k);
         gp_collect *c = &job->parts[k];
-        bcast_array(r->comm, owner, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
-        MPI_Bcast(&job->sums[k], (int)sizeof job->sums[k], MPI_BYTE, owner, r->comm);
+        if (from == 0)
+            continue;
+        if (r->rank == from) {
+            send_array(r, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
+            MPI_Send(&job->sums[k], (int)sizeof job->sums[k], MPI_BYTE, 0, 0, r->comm);
+        } else if (r->rank == 0) {
+            recv_array(r, from, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
+            MPI_Recv(&job->sums[k], (int)sizeof job->sums[k], MPI_BYTE, from, 0, r->comm,
+                     MPI_STATUS_IGNORE);
+        }
     }
     return TESSEL_OK;
 }
 
+/* The runner of every process: its share of the tiles, then all of them on
+ * process 0, which goes on alone (seams, orientation, flips, output). */
 static tessel_status run_ranks(void *ctx, const tsl_gp_tiles_job *job)
 {
-    const ranks *r = ctx;
+    ranks *r = ctx;
+    r->joined = true;
     tessel_status st = tsl_progress(job->callbacks, "greedy", 0.0);
     if (st == TESSEL_OK)
         st = mesh_mine(r, job);
     if ((st = agree(r->comm, st)) != TESSEL_OK)
         return st;
-    if ((st = share_tiles(r, job)) != TESSEL_OK)
+    if ((st = gather_tiles(r, job)) != TESSEL_OK)
         return st;
     return tsl_progress(job->callbacks, "greedy", 0.5);
+}
+
+/* Waits for process 0's final status without holding a core: the others
+ * have nothing to do meanwhile, and process 0 may use every core. */
+static tessel_status final_status(const ranks *r, tessel_status mine)
+{
+    int st = (int)mine;
+    MPI_Request req;
+    MPI_Ibcast(&st, 1, MPI_INT, 0, r->comm, &req);
+    int done = 0;
+    while (MPI_Test(&req, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && !done) {
+        struct timespec nap = {0, 2000000};
+        nanosleep(&nap, NULL);
+    }
+    return (tessel_status)st;
 }
 
 tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
@@ -180,13 +230,22 @@ tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *c
                                             const tessel_triangle_sink *sink,
                                             tessel_recon_summary *summary)
 {
-    ranks r = {comm, 0, 1};
+    ranks r = {comm, 0, 1, false};
     MPI_Comm_rank(comm, &r.rank);
     MPI_Comm_size(comm, &r.size);
     tsl_gp_tile_runner runner = {run_ranks, &r};
-    tessel_status st =
-        tsl_reconstruct_greedy_with(cloud, params, &runner, callbacks, sink, summary);
-    /* What follows the tiles runs on each process alone: agree at the end
-     * so that no process keeps a result another could not make. */
-    return agree(comm, st);
+    tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
+    bool tiled = tsl_gp_tiled(cloud, &p);
+    tessel_status st;
+    if (r.rank == 0)
+        st = tsl_reconstruct_greedy_with(cloud, &p, &runner, callbacks, sink, summary);
+    else if (tiled)
+        st = tsl_gp_tiles_help(cloud, &p, &runner, callbacks);
+    else
+        st = TESSEL_OK;
+    /* A process that failed before its tiles' steps still takes part in
+     * the first, with its failure, so that no process waits for it. */
+    if (tiled && !r.joined)
+        agree(comm, st == TESSEL_OK ? TESSEL_ERR_INVALID_ARG : st);
+    return final_status(&r, r.rank == 0 ? st : TESSEL_OK);
 }
