@@ -30,7 +30,7 @@
  * triangles within this many mean spacings beyond the band of a cut ... */
 #define TILE_VOTE_REACH 4.0
 /* ... each with its nearest triangle of another component within this
- * many mean spacings beyond the two bands (see orient_tiles). */
+ * many mean spacings beyond the two bands (see tsl_orient_tiles). */
 #define TILE_PAIR_REACH 4.0
 /* Share of the progress bar given to the tiles (the front over all points,
  * which starts with their triangles, reports the rest). */
@@ -111,219 +111,6 @@ static tessel_status tile_front(const af *g, const tessel_front_params *p, const
     return st ? st : tsl_af_run_fronts(t, cb);
 }
 
-/* Agreement between two tile components: the sum of the dot products of
- * nearby triangles' normals across cuts. */
-typedef struct tile_pair {
-    uint32_t a, b; /* component ids, a < b */
-    double w;
-} tile_pair;
-
-static int cmp_pair_ids(const void *pa, const void *pb)
-{
-    const tile_pair *x = pa, *y = pb;
-    if (x->a != y->a)
-        return x->a < y->a ? -1 : 1;
-    return x->b < y->b ? -1 : (x->b > y->b);
-}
-
-static int cmp_pair_weight(const void *pa, const void *pb)
-{
-    const tile_pair *x = pa, *y = pb;
-    double u = fabs(x->w), v = fabs(y->w);
-    if (u != v)
-        return u > v ? -1 : 1;
-    return cmp_pair_ids(pa, pb);
-}
-
-/* Root of component c and, in *flip, whether c is reversed against it. */
-static uint32_t parity_root(const uint32_t *up, const uint8_t *rel, uint32_t c, uint8_t *flip)
-{
-    *flip = 0;
-    while (up[c] != c) {
-        *flip ^= rel[c];
-        c = up[c];
-    }
-    return c;
-}
-
-/* Parities of the components (rel to up, see parity_root) from their
- * pairs, strongest first, leaving out dropped components. */
-static void spanning_parity(const tile_pair *pairs, size_t np, size_t ncomp, const uint8_t *drop,
-                            uint32_t *up, uint8_t *rel)
-{
-    for (size_t c = 0; c < ncomp; c++) {
-        up[c] = (uint32_t)c;
-        rel[c] = 0;
-    }
-    for (size_t i = 0; i < np; i++) {
-        if (drop[pairs[i].a] || drop[pairs[i].b])
-            continue;
-        uint8_t fa, fb;
-        uint32_t ra = parity_root(up, rel, pairs[i].a, &fa);
-        uint32_t rb = parity_root(up, rel, pairs[i].b, &fb);
-        if (ra == rb)
-            continue;
-        uint32_t keep = ra < rb ? ra : rb, under = ra < rb ? rb : ra;
-        up[under] = keep;
-        rel[under] = (uint8_t)(fa ^ fb ^ (pairs[i].w < 0.0));
-    }
-}
-
-/* Orients the tiles' components (comp[t] for triangle t, ncomp of them)
- * against each other: a pair of components facing each other across a cut
- * agree or disagree by the normals of their nearest triangles there
- * (triangles with a vertex within near of a cut, nearest centroid of
- * another tile within radius); the strongest agreements are taken first
- * (a maximum spanning forest), so a weak or wrong one cannot override
- * them. Reversed components get their triangles turned. */
-static tessel_status orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count,
-                                  size_t ncomp, const float *xyz, const float *dcut, double near,
-                                  double radius, double cell, size_t small, uint8_t *drop)
-{
-    size_t nl = 0;
-    for (size_t t = 0; t < count; t++) {
-        const uint32_t *v = tri + 3 * t;
-        nl += dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near;
-    }
-    uint32_t *list = tsl_alloc_array(nl + 1, sizeof *list);
-    double *geo = tsl_alloc_array(6 * nl + 1, sizeof *geo); /* centroid, normal */
-    tile_pair *pairs = tsl_alloc_array(nl + 1, sizeof *pairs);
-    uint32_t *up = tsl_alloc_array(ncomp + 1, sizeof *up);
-    uint8_t *rel = tsl_calloc_array(ncomp + 1, sizeof *rel);
-    size_t *size = tsl_calloc_array(ncomp + 1, sizeof *size);
-    double *total = tsl_alloc_array(ncomp + 1, sizeof *total);
-    double *agree = tsl_alloc_array(ncomp + 1, sizeof *agree);
-    tsl_trigrid grid;
-    memset(&grid, 0, sizeof grid);
-    tessel_status st = TESSEL_ERR_NOMEM;
-    if (!list || !geo || !pairs || !up || !rel || !size || !total || !agree)
-        goto done;
-    memset(drop, 0, ncomp);
-    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    nl = 0;
-    for (size_t t = 0; t < count; t++) {
-        const uint32_t *v = tri + 3 * t;
-        if (!(dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near))
-            continue;
-        double p[3][3], *g = geo + 6 * nl;
-        for (int i = 0; i < 3; i++)
-            tsl_load(xyz + 3 * (size_t)v[i], p[i]);
-        tsl_af_tri_normal(p[0], p[1], p[2], g + 3);
-        for (int c = 0; c < 3; c++) {
-            g[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
-            lo[c] = dmin(lo[c], g[c]);
-            hi[c] = dmax(hi[c], g[c]);
-        }
-        list[nl++] = (uint32_t)t;
-    }
-    if ((st = tsl_trigrid_init(&grid, lo, hi, cell)))
-        goto done;
-    for (size_t i = 0; i < nl; i++)
-        if ((st = tsl_trigrid_insert(&grid, (uint32_t)i, geo + 6 * i, geo + 6 * i)))
-            goto done;
-    size_t np = 0;
-    for (size_t i = 0; i < nl; i++) {
-        const double *g = geo + 6 * i;
-        double blo[3], bhi[3];
-        for (int c = 0; c < 3; c++) {
-            blo[c] = g[c] - radius;
-            bhi[c] = g[c] + radius;
-        }
-        if ((st = tsl_trigrid_query(&grid, blo, bhi)))
-            goto done;
-        double best = radius * radius;
-        uint32_t best_j = NONE;
-        for (size_t f = 0; f < grid.hits.count; f++) {
-            uint32_t j = grid.hits.found[f];
-            if (comp[list[j]] == comp[list[i]])
-                continue;
-            double d[3], h;
-            tsl_sub(geo + 6 * (size_t)j, g, d);
-            double d2 = tsl_dot(d, d);
-            /* Only along the surface: the other side of a thin part lies
-             * off the tangent plane and faces the other way. */
-            h = tsl_dot(d, g + 3);
-            if (4.0 * h * h > d2)
-                continue;
-            if (d2 < best || (d2 == best && j < best_j)) {
-                best = d2;
-                best_j = j;
-            }
-        }
-        if (best_j == NONE)
-            continue;
-        uint32_t ca = comp[list[i]], cb = comp[list[best_j]];
-        pairs[np].a = ca < cb ? ca : cb;
-        pairs[np].b = ca < cb ? cb : ca;
-        pairs[np].w = tsl_dot(g + 3, geo + 6 * (size_t)best_j + 3);
-        np++;
-    }
-    qsort(pairs, np, sizeof *pairs, cmp_pair_ids);
-    size_t merged = 0;
-    for (size_t i = 0; i < np; i++) {
-        if (merged && pairs[merged - 1].a == pairs[i].a && pairs[merged - 1].b == pairs[i].b)
-            pairs[merged - 1].w += pairs[i].w;
-        else
-            pairs[merged++] = pairs[i];
-    }
-    qsort(pairs, merged, sizeof *pairs, cmp_pair_weight);
-    /* A component whose pairs disagree with the forest by more than a
-     * quarter of their weight is dropped too (its neighbours across the
-     * cuts contradict each other: a fold, another sheet), and the forest
-     * is built again without it. */
-    for (int round = 0; round < 2; round++) {
-        spanning_parity(pairs, merged, ncomp, drop, up, rel);
-        if (round == 1)
-            break;
-        memset(total, 0, ncomp * sizeof *total);
-        memset(agree, 0, ncomp * sizeof *agree);
-        for (size_t i = 0; i < merged; i++) {
-            if (drop[pairs[i].a] || drop[pairs[i].b])
-                continue;
-            uint8_t fa, fb;
-            parity_root(up, rel, pairs[i].a, &fa);
-            parity_root(up, rel, pairs[i].b, &fb);
-            double w = fa == fb ? pairs[i].w : -pairs[i].w;
-            total[pairs[i].a] += fabs(w);
-            total[pairs[i].b] += fabs(w);
-            agree[pairs[i].a] += w;
-            agree[pairs[i].b] += w;
-        }
-        for (size_t c = 0; c < ncomp; c++)
-            if (agree[c] < 0.5 * total[c])
-                drop[c] = 1;
-    }
-    /* Small pieces at a cut (a tile's corner of the surface, the tip of a
-     * thin part) relay the orientation between their neighbours, then are
-     * left to the front over all points, which joins them better. */
-    for (size_t t = 0; t < count; t++)
-        size[comp[t]]++;
-    for (size_t t = 0; t < count; t++) {
-        const uint32_t *v = tri + 3 * t;
-        if ((dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near) &&
-            size[comp[t]] < small)
-            drop[comp[t]] = 1;
-    }
-    for (size_t t = 0; t < count; t++) {
-        uint8_t f;
-        parity_root(up, rel, comp[t], &f);
-        if (f)
-            tsl_af_flip_triangle(tri + 3 * t);
-    }
-    st = TESSEL_OK;
-done:
-    tsl_trigrid_free(&grid);
-    free(list);
-    free(geo);
-    free(pairs);
-    free(up);
-    free(rel);
-    free(size);
-    free(total);
-    free(agree);
-    return st;
-}
-
 /* Makes the triangles of s (a starting mesh: the tiles' or a caller's) a
  * front: every edge on one triangle becomes a border edge, queued, linked
  * along its loop. */
@@ -369,7 +156,7 @@ static tessel_status import_mesh(af *s, const uint32_t *tri, size_t count, const
 }
 
 /* Places the tiles' triangles (tiles[0 .. nt), points ids[range]) in s,
- * less the band along the cuts and the components orient_tiles drops,
+ * less the band along the cuts and the components tsl_orient_tiles drops,
  * the rest oriented against each other. */
 static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, size_t nt,
                                  const uint32_t *ids, const float *dcut, double mean_nn,
@@ -426,7 +213,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, si
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
-    if ((st = orient_tiles(tri, comp, count, ncomp, s->xyz, dcut,
+    if ((st = tsl_orient_tiles(tri, comp, count, ncomp, s->xyz, dcut,
                            band + TILE_VOTE_REACH * mean_nn,
                            2.0 * band + TILE_PAIR_REACH * mean_nn, s->cell, small, drop)))
         goto done;

@@ -17,6 +17,13 @@
  * without the points beyond the cut. */
 #define TILE_BAND 1.0
 
+/* Tiles are oriented against each other by their triangles within this
+ * many mean spacings beyond the band of a cut, each with its nearest
+ * triangle of another component within this many beyond the two bands (as
+ * the advancing front's tiles, front/tiles.c). */
+#define TILE_VOTE_REACH 4.0
+#define TILE_PAIR_REACH 4.0
+
 /* Progress of the tiles: the calling thread reports the tiles finished;
  * a cancellation it hears stops every tile at its next report. */
 typedef struct tile_ctx {
@@ -55,6 +62,56 @@ static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, 
     memcpy(out->viewpoint, cloud->viewpoint, sizeof out->viewpoint);
     out->has_viewpoint = cloud->has_viewpoint;
     return TESSEL_OK;
+}
+
+/* The tiles' components oriented against each other across the cuts (a
+ * tile's front cannot know which side of a closed surface is out, and two
+ * tiles that disagree leave a seam no front can close): tsl_orient_tiles
+ * with the front's reaches, in mean spacings beyond the band. Components it
+ * leaves out (contradicted by their neighbours, small pieces at a cut) are
+ * dropped; the front that closes the seams meshes their points again. */
+static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, const float *dcut,
+                                  double band, double spacing, size_t tile_points)
+{
+    size_t n = cloud->count, count = all->count;
+    uint32_t *root = tsl_alloc_array(n, sizeof *root);
+    uint32_t *label = tsl_alloc_array(n, sizeof *label);
+    uint32_t *comp = tsl_alloc_array(count + 1, sizeof *comp);
+    uint8_t *drop = NULL;
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!root || !label || !comp)
+        goto done;
+    tsl_vertex_components(all->tris, count, n, root);
+    for (size_t i = 0; i < n; i++)
+        label[i] = TESSEL_NONE;
+    size_t ncomp = 0;
+    for (size_t t = 0; t < count; t++) {
+        uint32_t r = tsl_uf_find(root, all->tris[3 * t]);
+        if (label[r] == TESSEL_NONE)
+            label[r] = (uint32_t)ncomp++;
+        comp[t] = label[r];
+    }
+    if (!(drop = tsl_alloc_array(ncomp + 1, sizeof *drop)))
+        goto done;
+    st = tsl_orient_tiles(all->tris, comp, count, ncomp, cloud->xyz, dcut,
+                          band + TILE_VOTE_REACH * spacing,
+                          2.0 * band + TILE_PAIR_REACH * spacing, 2.0 * spacing,
+                          tile_points / 4, drop);
+    if (st)
+        goto done;
+    size_t w = 0;
+    for (size_t t = 0; t < count; t++)
+        if (!drop[comp[t]]) {
+            memmove(all->tris + 3 * w, all->tris + 3 * t, 3 * sizeof *all->tris);
+            w++;
+        }
+    all->count = w;
+done:
+    free(root);
+    free(label);
+    free(comp);
+    free(drop);
+    return st;
 }
 
 tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
@@ -166,10 +223,11 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     if (st)
         goto done;
     /* The tiles' triangles, less those near a cut, in tile order. */
-    double reach = 0.0;
+    double reach = 0.0, spacing = 0.0;
     for (size_t k = 0; k < nt; k++) {
         double r = TILE_BAND * sums[k].mu * sums[k].spacing;
         reach = r > reach ? r : reach;
+        spacing = sums[k].spacing > spacing ? sums[k].spacing : spacing;
     }
     for (size_t k = 0; k < nt && !st; k++) {
         const gp_collect *c = &parts[k];
@@ -182,7 +240,8 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
             st = tsl_gp_collect_emit(all, v, 1);
         }
     }
-    if (st || (st = tsl_single_fans(cloud->count, all->tris, &all->count, touched)))
+    if (st || (st = tsl_single_fans(cloud->count, all->tris, &all->count, touched)) ||
+        (st = orient_tiles(cloud, all, cut.dcut, reach, spacing, params->tile_points)))
         goto done;
     /* The seams: one front over all points from those triangles. */
     tessel_greedy_params sp = tp;

@@ -82,6 +82,23 @@ tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint
  * skipped. */
 void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *root);
 
+/* ---- tiles oriented against each other (mesh/tile_orient.c) ----
+ * Orients the tiles' components (comp[t] for triangle t of tri[0 .. count),
+ * ncomp of them, over the points xyz, dcut[v] each point's distance to the
+ * nearest cut) against each other: a pair of components facing each other
+ * across a cut agree or disagree by the normals of their nearest triangles
+ * there (triangles with a vertex within near of a cut, nearest centroid of
+ * another component within radius, along the surface); the strongest
+ * agreements are taken first (a maximum spanning forest), so a weak or
+ * wrong one cannot override them. Reversed components get their triangles
+ * turned. drop[c] (ncomp bytes) is set for components to leave to the
+ * front that closes the seams: those whose pairs contradict the forest,
+ * and those under `small` triangles at a cut. cell: the grid cell for the
+ * centroids (about a mean spacing). */
+tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count, size_t ncomp,
+                               const float *xyz, const float *dcut, double near, double radius,
+                               double cell, size_t small, uint8_t *drop);
+
 /* ---- checked local edits (mesh/edit.c, flip.c, split.c) ---- */
 
 /* Open-addressing map from an undirected edge to one of its half-edges,
