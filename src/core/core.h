@@ -104,6 +104,23 @@ static inline bool tsl_normalize(double a[3])
     a[2] /= n;
     return true;
 }
+/* Unit normal of triangle (x, y, z) into n (left unnormalized when the
+ * triangle is degenerate); returns twice its area. */
+static inline double tsl_tri_normal(const double x[3], const double y[3], const double z[3],
+                                   double n[3])
+{
+    double u[3], v[3];
+    tsl_sub(y, x, u);
+    tsl_sub(z, x, v);
+    tsl_cross(u, v, n);
+    double len = tsl_norm(n);
+    if (len > 0.0) {
+        n[0] /= len;
+        n[1] /= len;
+        n[2] /= len;
+    }
+    return len;
+}
 static inline void tsl_load(const float *p, double out[3])
 {
     out[0] = p[0];

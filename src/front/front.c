@@ -65,22 +65,6 @@ tessel_front_params tessel_front_params_default(void)
 /* Mesh bookkeeping                                                          */
 /* ------------------------------------------------------------------------ */
 
-/* Unit normal of triangle (x, y, z) into n; returns twice its area. */
-double tsl_af_tri_normal(const double x[3], const double y[3], const double z[3], double n[3])
-{
-    double u[3], v[3];
-    tsl_sub(y, x, u);
-    tsl_sub(z, x, v);
-    tsl_cross(u, v, n);
-    double len = tsl_norm(n);
-    if (len > 0.0) {
-        n[0] /= len;
-        n[1] /= len;
-        n[2] /= len;
-    }
-    return len;
-}
-
 /* 1 when the undirected edge {x, y} is on some triangle. */
 bool tsl_af_edge_exists(const af *s, uint32_t x, uint32_t y)
 {
@@ -120,7 +104,7 @@ tessel_status tsl_af_add_triangle(af *s, uint32_t x, uint32_t y, uint32_t z, uin
         s->cnext[c] = s->vhead[v[i]];
         s->vhead[v[i]] = c;
     }
-    tsl_af_tri_normal(p[0], p[1], p[2], n);
+    tsl_tri_normal(p[0], p[1], p[2], n);
     for (int i = 0; i < 3; i++)
         for (int c = 0; c < 3; c++)
             s->star[3 * (size_t)v[i] + c] += (float)n[c];

@@ -192,8 +192,6 @@ static inline void link_edges(af *s, uint32_t x, uint32_t y)
 }
 
 /* Unit normal of triangle (x, y, z) into n; returns twice its area. */
-double tsl_af_tri_normal(const double x[3], const double y[3], const double z[3], double n[3]);
-
 /* 1 when the undirected edge {x, y} is on some triangle. */
 bool tsl_af_edge_exists(const af *s, uint32_t x, uint32_t y);
 

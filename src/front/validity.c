@@ -180,7 +180,7 @@ bool tsl_af_make_tri(const af *s, uint32_t a, uint32_t b, uint32_t c, af_tri *x)
     x->exact_only = false;
     for (int i = 0; i < 3; i++)
         point(s, x->v[i], x->p[i]);
-    double area2 = tsl_af_tri_normal(x->p[0], x->p[1], x->p[2], x->n);
+    double area2 = tsl_tri_normal(x->p[0], x->p[1], x->p[2], x->n);
     x->maxlen = 0.0;
     for (int i = 0; i < 3; i++) {
         double d[3];

@@ -173,29 +173,47 @@ done:
     return st;
 }
 
+/* The tiles of a tiled pass, meshed by runner (NULL: this process's
+ * threads) into parts[k] and sums[k] (the caller frees them with
+ * free_tiles, also on failure). */
+static tessel_status mesh_tiles(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                const tsl_gp_tile_runner *runner,
+                                const tessel_callbacks *callbacks, tsl_tiles *cut,
+                                gp_collect **parts, tessel_recon_summary **sums)
+{
+    *parts = NULL;
+    *sums = NULL;
+    tessel_status st = tsl_tiles_cut(cloud->xyz, cloud->count, params->tile_points, cut);
+    if (st)
+        return st;
+    *parts = tsl_calloc_array(cut->count, sizeof **parts);
+    *sums = tsl_calloc_array(cut->count, sizeof **sums);
+    if (!*parts || !*sums)
+        return TESSEL_ERR_NOMEM;
+    tessel_greedy_params tp = *params;
+    tp.tile_points = 0;
+    tsl_gp_tiles_job job = {cloud, &tp, cut, cut->count, callbacks, *parts, *sums};
+    return runner ? runner->run(runner->ctx, &job) : run_threads(NULL, &job);
+}
+
+static void free_tiles(tsl_tiles *cut, gp_collect *parts, tessel_recon_summary *sums)
+{
+    for (size_t k = 0; parts && k < cut->count; k++)
+        free(parts[k].tris);
+    free(parts);
+    free(sums);
+    tsl_tiles_free(cut);
+}
+
 tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks)
 {
-    tsl_tiles cut;
-    tessel_status st = tsl_tiles_cut(cloud->xyz, cloud->count, params->tile_points, &cut);
-    if (st)
-        return st;
-    size_t nt = cut.count;
-    gp_collect *parts = tsl_calloc_array(nt, sizeof *parts);
-    tessel_recon_summary *sums = tsl_calloc_array(nt, sizeof *sums);
-    st = TESSEL_ERR_NOMEM;
-    if (parts && sums) {
-        tessel_greedy_params tp = *params;
-        tp.tile_points = 0;
-        tsl_gp_tiles_job job = {cloud, &tp, &cut, nt, callbacks, parts, sums};
-        st = runner->run(runner->ctx, &job);
-    }
-    for (size_t k = 0; parts && k < nt; k++)
-        free(parts[k].tris);
-    free(parts);
-    free(sums);
-    tsl_tiles_free(&cut);
+    tsl_tiles cut = {0};
+    gp_collect *parts;
+    tessel_recon_summary *sums;
+    tessel_status st = mesh_tiles(cloud, params, runner, callbacks, &cut, &parts, &sums);
+    free_tiles(&cut, parts, sums);
     return st;
 }
 
@@ -204,24 +222,18 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
                                 const tessel_callbacks *callbacks, gp_collect *all,
                                 tessel_recon_summary *summary)
 {
-    tsl_tiles cut;
-    tessel_status st = tsl_tiles_cut(cloud->xyz, cloud->count, params->tile_points, &cut);
+    tsl_tiles cut = {0};
+    gp_collect *parts, more = {NULL, 0, 0};
+    tessel_recon_summary *sums;
+    uint8_t *touched = NULL;
+    tessel_status st = mesh_tiles(cloud, params, runner, callbacks, &cut, &parts, &sums);
     if (st)
-        return st;
+        goto done;
+    if (!(touched = tsl_calloc_array(cloud->count, sizeof *touched))) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
     size_t nt = cut.count;
-    gp_collect *parts = tsl_calloc_array(nt, sizeof *parts);
-    tessel_recon_summary *sums = tsl_calloc_array(nt, sizeof *sums);
-    uint8_t *touched = tsl_calloc_array(cloud->count, sizeof *touched);
-    gp_collect more = {NULL, 0, 0};
-    st = TESSEL_ERR_NOMEM;
-    if (!parts || !sums || !touched)
-        goto done;
-    tessel_greedy_params tp = *params;
-    tp.tile_points = 0;
-    tsl_gp_tiles_job job = {cloud, &tp, &cut, nt, callbacks, parts, sums};
-    st = runner ? runner->run(runner->ctx, &job) : run_threads(NULL, &job);
-    if (st)
-        goto done;
     /* The tiles' triangles, less those near a cut, in tile order. */
     double reach = 0.0, spacing = 0.0;
     for (size_t k = 0; k < nt; k++) {
@@ -244,7 +256,8 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         (st = orient_tiles(cloud, all, cut.dcut, reach, spacing, params->tile_points)))
         goto done;
     /* The seams: one front over all points from those triangles. */
-    tessel_greedy_params sp = tp;
+    tessel_greedy_params sp = *params;
+    sp.tile_points = 0;
     sp.existing = all->tris;
     sp.existing_count = all->count;
     tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
@@ -260,12 +273,8 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     summary->tiles = nt;
     st = tsl_gp_collect_emit(all, more.tris, more.count);
 done:
-    for (size_t k = 0; parts && k < nt; k++)
-        free(parts[k].tris);
-    free(parts);
-    free(sums);
+    free_tiles(&cut, parts, sums);
     free(touched);
     free(more.tris);
-    tsl_tiles_free(&cut);
     return st;
 }

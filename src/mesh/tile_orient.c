@@ -9,21 +9,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The unit normal of triangle x, y, z (left as is when degenerate). */
-static void unit_normal(const double x[3], const double y[3], const double z[3], double n[3])
-{
-    double u[3], v[3];
-    tsl_sub(y, x, u);
-    tsl_sub(z, x, v);
-    tsl_cross(u, v, n);
-    double len = tsl_norm(n);
-    if (len > 0.0) {
-        n[0] /= len;
-        n[1] /= len;
-        n[2] /= len;
-    }
-}
-
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
 
@@ -124,7 +109,7 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
         double p[3][3], *g = geo + 6 * nl;
         for (int i = 0; i < 3; i++)
             tsl_load(xyz + 3 * (size_t)v[i], p[i]);
-        unit_normal(p[0], p[1], p[2], g + 3);
+        tsl_tri_normal(p[0], p[1], p[2], g + 3);
         for (int c = 0; c < 3; c++) {
             g[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
             lo[c] = dmin(lo[c], g[c]);
