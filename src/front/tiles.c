@@ -168,12 +168,10 @@ static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, si
     double band = TILE_BAND * mean_nn;
     uint32_t *tri = tsl_alloc_array(3 * total + 1, sizeof *tri);
     uint8_t *touched = tsl_calloc_array(s->n, sizeof *touched);
-    uint32_t *parent = tsl_alloc_array(s->n, sizeof *parent);
-    uint32_t *cid = tsl_alloc_array(s->n, sizeof *cid);
     uint32_t *comp = tsl_alloc_array(total + 1, sizeof *comp);
     uint8_t *drop = NULL;
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!tri || !touched || !parent || !cid || !comp)
+    if (!tri || !touched || !comp)
         goto done;
     size_t count = 0;
     for (size_t k = 0; k < nt; k++) {
@@ -199,16 +197,9 @@ static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, si
     if ((st = tsl_single_fans(s->n, tri, &count, touched)))
         goto done;
     /* Components (edge-connected: every vertex has a single fan). */
-    tsl_vertex_components(tri, count, s->n, parent);
-    size_t ncomp = 0;
-    for (size_t i = 0; i < s->n; i++)
-        cid[i] = NONE;
-    for (size_t t = 0; t < count; t++) {
-        uint32_t r = tsl_uf_find(parent, tri[3 * t]);
-        if (cid[r] == NONE)
-            cid[r] = (uint32_t)ncomp++;
-        comp[t] = cid[r];
-    }
+    size_t ncomp;
+    if ((st = tsl_triangle_components(tri, count, s->n, comp, &ncomp)))
+        goto done;
     if (!(drop = tsl_alloc_array(ncomp + 1, sizeof *drop))) {
         st = TESSEL_ERR_NOMEM;
         goto done;
@@ -221,8 +212,6 @@ static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, si
 done:
     free(tri);
     free(touched);
-    free(parent);
-    free(cid);
     free(comp);
     free(drop);
     return st;

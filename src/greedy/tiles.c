@@ -73,26 +73,17 @@ static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, 
 static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, const float *dcut,
                                   double band, double spacing, size_t tile_points)
 {
-    size_t n = cloud->count, count = all->count;
-    uint32_t *root = tsl_alloc_array(n, sizeof *root);
-    uint32_t *label = tsl_alloc_array(n, sizeof *label);
+    size_t count = all->count, ncomp = 0;
     uint32_t *comp = tsl_alloc_array(count + 1, sizeof *comp);
     uint8_t *drop = NULL;
-    tessel_status st = TESSEL_ERR_NOMEM;
-    if (!root || !label || !comp)
+    tessel_status st = comp ? tsl_triangle_components(all->tris, count, cloud->count, comp, &ncomp)
+                            : TESSEL_ERR_NOMEM;
+    if (st)
         goto done;
-    tsl_vertex_components(all->tris, count, n, root);
-    for (size_t i = 0; i < n; i++)
-        label[i] = TESSEL_NONE;
-    size_t ncomp = 0;
-    for (size_t t = 0; t < count; t++) {
-        uint32_t r = tsl_uf_find(root, all->tris[3 * t]);
-        if (label[r] == TESSEL_NONE)
-            label[r] = (uint32_t)ncomp++;
-        comp[t] = label[r];
+    if (!(drop = tsl_alloc_array(ncomp + 1, sizeof *drop))) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
     }
-    if (!(drop = tsl_alloc_array(ncomp + 1, sizeof *drop)))
-        goto done;
     st = tsl_orient_tiles(all->tris, comp, count, ncomp, cloud->xyz, dcut,
                           band + TILE_VOTE_REACH * spacing,
                           2.0 * band + TILE_PAIR_REACH * spacing, 2.0 * spacing,
@@ -107,8 +98,6 @@ static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, co
         }
     all->count = w;
 done:
-    free(root);
-    free(label);
     free(comp);
     free(drop);
     return st;

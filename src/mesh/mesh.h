@@ -81,6 +81,10 @@ tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint
  * triangle). Triangles whose first vertex is TESSEL_NONE (removed) are
  * skipped. */
 void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *root);
+/* The same components numbered 0 .. *ncomp in the order of their first
+ * triangle: comp[t] for each of the nt triangles (none removed). */
+tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *comp,
+                                      size_t *ncomp);
 
 /* ---- tiles oriented against each other (mesh/tile_orient.c) ----
  * Orients the tiles' components (comp[t] for triangle t of tri[0 .. count),

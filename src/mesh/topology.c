@@ -124,3 +124,28 @@ void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *
     for (size_t v = 0; v < nv; v++)
         root[v] = tsl_uf_find(root, (uint32_t)v);
 }
+
+tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *comp,
+                                      size_t *ncomp)
+{
+    uint32_t *root = tsl_alloc_array(nv + 1, sizeof *root);
+    uint32_t *label = tsl_alloc_array(nv + 1, sizeof *label);
+    *ncomp = 0;
+    if (!root || !label) {
+        free(root);
+        free(label);
+        return TESSEL_ERR_NOMEM;
+    }
+    tsl_vertex_components(tri, nt, nv, root);
+    for (size_t v = 0; v < nv; v++)
+        label[v] = TESSEL_NONE;
+    for (size_t t = 0; t < nt; t++) {
+        uint32_t r = root[tri[3 * t]];
+        if (label[r] == TESSEL_NONE)
+            label[r] = (uint32_t)(*ncomp)++;
+        comp[t] = label[r];
+    }
+    free(root);
+    free(label);
+    return TESSEL_OK;
+}
