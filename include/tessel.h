@@ -689,6 +689,13 @@ typedef struct tessel_greedy_params {
                               their boundary and they are not sent to the
                               sink again. Default NULL */
     size_t existing_count;
+    const uint8_t *frozen; /* with existing triangles, optional, one byte
+                              per point: a point marked non-zero takes no
+                              new triangle and its fan among the existing
+                              ones may be partial (its other triangles lie
+                              outside this cloud: a neighbouring part
+                              already written, as in the out-of-core
+                              sweep). Default NULL */
     int orient_check;      /* 1: hold every triangle until the end, find
                               regions meshed the wrong way round (the
                               front can step across a place where two
@@ -770,6 +777,8 @@ typedef struct tessel_recon_summary {
     double spacing;              /* mean spacing used, world units */
     double mu;                   /* mu used (see mu_from_sampling) */
     size_t tiles;                /* tiles of the first pass (0: one front) */
+    size_t slabs;                /* out of core: slabs meshed in turn (0: in
+                                    core) */
     double seconds;              /* wall-clock time of the call */
 } tessel_recon_summary;
 
@@ -801,6 +810,41 @@ TESSEL_API tessel_status tessel_reconstruct_greedy_mesh(const tessel_cloud *clou
                                                         const tessel_callbacks *callbacks,
                                                         tessel_mesh *mesh,
                                                         tessel_recon_summary *summary);
+
+/* Out of core: clouds larger than memory. The file is read three times in
+ * chunks (never whole): once to count the points and cut the cloud into
+ * slabs along its longest axis (quantiles of a sample), once to sort the
+ * points into one scratch file per slab, once to write the output's
+ * vertices. The slabs are meshed in turn by greedy projection (tiles in
+ * parallel within a slab), a band of triangles carried across each cut so
+ * the seams close as in core; finished triangles go to a scratch file.
+ * Memory: about 450 bytes per point of a slab, so the slabs hold
+ * memory / 450 points each. Differences from the in-core result: no
+ * orientation check by rays (orient_check), and the cuts fall elsewhere;
+ * docs/outofcore.md. */
+typedef struct tessel_outofcore_params {
+    uint64_t memory;     /* bytes the reconstruction may use; 0 (default):
+                            half the machine's physical memory */
+    const char *scratch; /* folder for the scratch files (a hidden folder is
+                            made there and removed on success, failure and
+                            cancellation); NULL (default): the output's
+                            folder */
+} tessel_outofcore_params;
+TESSEL_API tessel_outofcore_params tessel_outofcore_params_default(void);
+
+/* Reads the cloud at in (PLY, XYZ/CSV, LAS/LAZ; read_params may be NULL)
+ * and writes the greedy projection mesh of its points to out (PLY, OBJ or
+ * OFF; write_params may be NULL) within op->memory. The output's vertices
+ * are the used points in input order, as tessel_reconstruct_greedy_mesh
+ * gives them. The summary counts the points, the triangles and the slabs
+ * (in tiles); components and boundary edges are left 0 (tessel_check
+ * measures them). Errors name the file in diag; the output appears whole
+ * or not at all. */
+TESSEL_API tessel_status tessel_reconstruct_greedy_file(
+    const char *in, const char *out, const tessel_read_params *read_params,
+    const tessel_greedy_params *params, const tessel_write_params *write_params,
+    const tessel_outofcore_params *op, const tessel_callbacks *callbacks,
+    tessel_recon_summary *summary, tessel_diag *diag);
 
 /* ------------------------------------------------------------------------ */
 /* Fixed-plane reconstruction for height fields, range scans and organized   */

@@ -144,8 +144,20 @@ double cli_peak_mib(void);
 typedef struct cli_greedy_opts {
     tessel_greedy_params p;
     int ascii;
+    tessel_outofcore_params ooc; /* --memory SIZE, --scratch DIR */
 } cli_greedy_opts;
 int cli_greedy_option(void *ctx, int argc, char **argv, int *i);
+
+/* Out of core (tools/cmd_reconstruct_file.c): whether the cloud at in is
+ * to be meshed out of core within o->ooc.memory (0: half the machine's
+ * memory), judged by the file's size before reading it; and that run, with
+ * its summary. Returns an exit code. */
+bool cli_outofcore_wanted(const char *in, const cli_greedy_opts *o);
+int cli_reconstruct_outofcore(const char *in, const char *out, const cli_greedy_opts *o,
+                              const cli_common *common);
+/* Parses a size in bytes: a number with an optional K, M, G or T suffix
+ * (powers of 1024). Prints an error and returns false when it is not. */
+bool cli_parse_size(const char *opt, const char *text, uint64_t *out);
 
 /* Subcommands. */
 int cmd_info(int argc, char **argv);

@@ -62,6 +62,13 @@ static const char greedy_help[] =
     "                     inside-out check and the flips: memory for the\n"
     "                     points and the front only, not the mesh (for the\n"
     "                     largest clouds)\n"
+    "  --memory SIZE      memory to mesh within (2G, 500M; default half the\n"
+    "                     machine's): a cloud whose file would need more in\n"
+    "                     core is meshed out of core, in slabs along its\n"
+    "                     longest axis through scratch files (no inside-out\n"
+    "                     check; see docs/outofcore.md)\n"
+    "  --scratch DIR      folder for the scratch files (default: the output's);\n"
+    "                     they are removed on success, failure and Ctrl-C\n"
     "  --ascii            write ascii PLY\n\n";
 
 int cli_greedy_option(void *ctx, int argc, char **argv, int *i)
@@ -81,11 +88,17 @@ int cli_greedy_option(void *ctx, int argc, char **argv, int *i)
     }
     if (strcmp(a, "--mu") && strcmp(a, "--max-angle") && strcmp(a, "--min-angle") &&
         strcmp(a, "--plane") && strcmp(a, "--max-spacing") && strcmp(a, "--method") &&
-        strcmp(a, "--tile-points"))
+        strcmp(a, "--tile-points") && strcmp(a, "--memory") && strcmp(a, "--scratch"))
         return 0;
     const char *v = cli_option_value(argc, argv, i);
     if (!v)
         return -1;
+    if (strcmp(a, "--memory") == 0)
+        return cli_parse_size(a, v, &o->ooc.memory) ? 1 : -1;
+    if (strcmp(a, "--scratch") == 0) {
+        o->ooc.scratch = v;
+        return 1;
+    }
     if (strcmp(a, "--tile-points") == 0) {
         long n;
         if (!cli_parse_int(a, v, 0, 1L << 30, &n))
@@ -150,11 +163,14 @@ static int greedy(int argc, char **argv)
     cli_greedy_opts o;
     memset(&o, 0, sizeof o);
     o.p = tessel_greedy_params_default();
+    o.ooc = tessel_outofcore_params_default();
     const char *in = NULL, *out = NULL;
     int r = cli_parse_in_out(argc, argv, greedy_help, &common, &in, &out, cli_greedy_option, &o);
     if (r <= 0)
         return r == 0 ? CLI_OK : CLI_USAGE;
     cli_apply_threads(&common);
+    if (cli_outofcore_wanted(in, &o))
+        return cli_reconstruct_outofcore(in, out, &o, &common);
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};
@@ -253,8 +269,11 @@ static const char auto_help[] =
     "                           height --help)\n"
     "A method's own options choose it (--mu greedy, --refine smooth, ...);\n"
     "the fixed-plane options need their --mode.\n\n"
+    "A cloud whose file is too large to mesh in core (see --memory) goes to\n"
+    "greedy projection out of core.\n\n"
     "Options:\n"
-    "  --ascii       write ascii PLY\n\n";
+    "  --ascii       write ascii PLY\n"
+    "  --memory SIZE, --scratch DIR   out of core (see --method greedy --help)\n\n";
 
 /* Options every method takes without a value. */
 static bool is_flag(const char *a)
@@ -278,13 +297,26 @@ static bool in_list(const char *a, const char *const *list, size_t n)
 }
 
 static const char *const greedy_only[] = {"--mu", "--min-angle", "--plane", "--max-spacing",
-                                          "--stream"};
+                                          "--stream", "--memory", "--scratch"};
 static const char *const smooth_only[] = {
     "--refine",       "--passes",      "--k",         "--sigma-rho",  "--sigma-w",
     "--sigma-max",    "--n-min",       "--max-diameter", "--max-edge", "--theta",
     "--theta-step",   "--phi",         "--normal-angle", "--max-hole",
     "--eps",          "--min-edge",    "--spacing",   "--max-noise"};
 #define COUNT(a) (sizeof(a) / sizeof *(a))
+
+/* Whether a cloud too large to read in core goes to greedy projection out
+ * of core (the only method that meshes out of core), with --memory as
+ * given. */
+static bool outofcore_wanted(int argc, char **argv, const char *in)
+{
+    cli_greedy_opts o;
+    memset(&o, 0, sizeof o);
+    for (int i = 1; i + 1 < argc; i++)
+        if (strcmp(argv[i], "--memory") == 0 && !cli_parse_size(argv[i], argv[i + 1], &o.ooc.memory))
+            return false;
+    return cli_outofcore_wanted(in, &o);
+}
 
 /* --method auto: reads IN, chooses the method, hands the cloud to it. */
 static int reconstruct_auto(int argc, char **argv)
@@ -328,6 +360,8 @@ static int reconstruct_auto(int argc, char **argv)
         return CLI_USAGE;
     }
     cli_apply_threads(&common);
+    if (!want_smooth && outofcore_wanted(argc, argv, in))
+        return greedy(argc, argv);
     tessel_cloud cloud = {0};
     int rc = cli_read_cloud(in, &cloud, 3, "a surface", &common);
     if (rc != CLI_OK)

@@ -1145,6 +1145,7 @@ tessel_greedy_params tessel_greedy_params_default(void)
     p.max_hole = 16;
     p.existing = NULL;
     p.existing_count = 0;
+    p.frozen = NULL;
     p.orient_check = 1;
     p.flip = 1;
     p.tile_points = 262144;
@@ -1176,7 +1177,7 @@ tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params 
     g.sum.points_in = g.n;
     tessel_status s = tsl_gp_init(&g);
     if (s == TESSEL_OK && p.existing_count)
-        s = tsl_gp_import_existing(&g, p.existing, p.existing_count);
+        s = tsl_gp_import_existing(&g, p.existing, p.existing_count, p.frozen);
     if (s == TESSEL_OK)
         s = tsl_progress(callbacks, stage, 0.0);
     if (s == TESSEL_OK)

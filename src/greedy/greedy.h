@@ -1,11 +1,12 @@
 /* Private declarations of the greedy projection reconstruction (Gopi &
- * Krishnan 2002), shared by its five files:
+ * Krishnan 2002), shared by its six files:
  *   greedy.c  reference points, seeds, the main loop, the API
  *   store.c   dexel array, triangle pool, fans, retirement, set-up
  *   guard.c   exact intersection tests, the free-cone certificate
  *   held.c    with the whole mesh held: regions meshed inside out found
  *             and rebuilt, diagonal flips (mesh/flip.c)
  *   tiles.c   the first pass in tiles, in parallel, and the seams
+ *   slabs.c   out of core: slabs meshed in turn, a band carried between
  * Not installed. */
 #ifndef TESSEL_GREEDY_H
 #define TESSEL_GREEDY_H
@@ -446,6 +447,31 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
                                 const tessel_callbacks *callbacks, gp_collect *all,
                                 tessel_recon_summary *summary);
 
+/* ---- slabs.c ---- */
+
+/* What an out-of-core sweep carries from one slab to the next: the band
+ * below the next cut (points with their global ids, frozen where written
+ * triangles use them, and the triangles not yet written, in the band's
+ * numbering). */
+typedef struct tsl_gp_slabs {
+    int axis;            /* the axis the slabs are cut along */
+    double cut, reach;   /* the band's cut and the band's reach */
+    size_t np, nt;
+    float *xyz, *normals;
+    uint32_t *gid, *tri;
+    uint8_t *frozen;
+} tsl_gp_slabs;
+
+void tsl_gp_slabs_init(tsl_gp_slabs *s, int axis);
+void tsl_gp_slabs_free(tsl_gp_slabs *s);
+/* One slab: the points of slab (global ids gid) between cut and next_cut
+ * along s->axis (INFINITY for the last slab) meshed and joined to the band;
+ * the triangles no later slab can change go to out in global ids. */
+tessel_status tsl_gp_slabs_step(tsl_gp_slabs *s, const tessel_cloud *slab, const uint32_t *gid,
+                                double cut, double next_cut, const tessel_greedy_params *params,
+                                const tessel_callbacks *callbacks,
+                                const tessel_triangle_sink *out, tessel_recon_summary *summary);
+
 /* ---- held.c ---- */
 
 /* The pass with every triangle held; then, when check, regions meshed
@@ -474,7 +500,8 @@ tessel_status tsl_gp_init(gp *g);
 void tsl_gp_free(gp *g);
 /* Imports params->existing (TESSEL_ERR_INVALID_ARG if not a manifold,
  * consistently oriented mesh). */
-tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count);
+tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count,
+                                     const uint8_t *frozen);
 /* Points other than R, not dead, in the box of half-size half around R:
  * live ones into g->box, completed ones with triangles into g->boxd. */
 tessel_status tsl_gp_scan_box(gp *g, uint32_t R, double half);

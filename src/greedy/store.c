@@ -1033,8 +1033,10 @@ static tessel_status adopt_used_duplicates(gp *g, const uint32_t *tris, size_t c
 
 /* Imports params->existing: links the triangles, then derives every touched
  * point's fan; fans that are not a single path or cycle, or edges used twice
- * in one direction, make the input invalid. */
-tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count)
+ * in one direction, make the input invalid. A frozen point (frozen may be
+ * NULL) is completed as it stands, whatever its fan here. */
+tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count,
+                                     const uint8_t *frozen)
 {
     uint32_t *inv = tsl_alloc_array(g->n, sizeof *inv);
     if (!inv)
@@ -1070,6 +1072,12 @@ tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count)
             uint32_t p = g->tri[t].v[k];
             if (st(g, p) != ST_FREE)
                 continue;
+            if (frozen && frozen[g->orig[p]]) {
+                g->sum.points_used++;
+                g->state[p] = (uint8_t)((g->state[p] & ~ST_MASK) | ST_DONE);
+                tsl_gp_point_settled(g, p);
+                continue;
+            }
             /* Link edges x -> y of p's triangles; a path or a cycle? */
             size_t edges = 0;
             uint32_t start = NONE;

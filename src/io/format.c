@@ -298,11 +298,9 @@ static const tsl_format_writer *writer_for(tessel_format format)
     }
 }
 
-/* Resolves params (NULL: defaults) and the format (AUTO: the extension)
- * into *eff and the writer. */
-static tessel_status write_setup(const char *path, const tessel_write_params *params,
-                                 tessel_write_params *eff, const tsl_format_writer **w,
-                                 tessel_diag *diag)
+tessel_status tsl_write_setup(const char *path, const tessel_write_params *params,
+                              tessel_write_params *eff, const tsl_format_writer **w,
+                              tessel_diag *diag)
 {
     *eff = params ? *params : tessel_write_params_default();
     if (!path || !*path) {
@@ -326,9 +324,8 @@ static tessel_status write_setup(const char *path, const tessel_write_params *pa
     return TESSEL_OK;
 }
 
-/* After a writer failed or finished: commit, or abort with a message. */
-static tessel_status finish_output(tsl_outfile *out, tessel_status st, const char *path,
-                                   tessel_diag *diag)
+tessel_status tsl_write_finish(tsl_outfile *out, tessel_status st, const char *path,
+                              tessel_diag *diag)
 {
     if (st == TESSEL_OK && ferror(out->fp))
         st = TESSEL_ERR_IO;
@@ -364,7 +361,7 @@ tessel_status tessel_cloud_write(const tessel_cloud *cloud, const char *path,
         return TESSEL_ERR_INVALID_ARG;
     tessel_write_params eff;
     const tsl_format_writer *w;
-    tessel_status st = write_setup(path, params, &eff, &w, diag);
+    tessel_status st = tsl_write_setup(path, params, &eff, &w, diag);
     if (st != TESSEL_OK)
         return st;
     if (!w->vertices) {
@@ -386,7 +383,7 @@ tessel_status tessel_cloud_write(const tessel_cloud *cloud, const char *path,
         if (st == TESSEL_OK && w->end)
             st = w->end(out.fp, &eff);
     }
-    return finish_output(&out, st, path, diag);
+    return tsl_write_finish(&out, st, path, diag);
 }
 
 tessel_status tessel_mesh_write(const tessel_mesh *mesh, const char *path,
@@ -406,7 +403,7 @@ tessel_status tessel_mesh_write(const tessel_mesh *mesh, const char *path,
     }
     tessel_write_params eff;
     const tsl_format_writer *w;
-    tessel_status st = write_setup(path, params, &eff, &w, diag);
+    tessel_status st = tsl_write_setup(path, params, &eff, &w, diag);
     if (st != TESSEL_OK)
         return st;
     tsl_outfile out;
@@ -423,7 +420,7 @@ tessel_status tessel_mesh_write(const tessel_mesh *mesh, const char *path,
         st = w->faces(out.fp, &v, mesh->triangles, mesh->triangles, faces, &eff);
     if (st == TESSEL_OK && w->end)
         st = w->end(out.fp, &eff);
-    return finish_output(&out, st, path, diag);
+    return tsl_write_finish(&out, st, path, diag);
 }
 
 /* ---- streaming mesh writer ---- */
@@ -469,7 +466,7 @@ tessel_status tessel_mesh_writer_open(tessel_mesh_writer **writer, const char *p
     tessel_mesh_writer *mw = calloc(1, sizeof *mw);
     if (!mw)
         return TESSEL_ERR_NOMEM;
-    tessel_status st = write_setup(path, params, &mw->params, &mw->w, diag);
+    tessel_status st = tsl_write_setup(path, params, &mw->params, &mw->w, diag);
     if (st == TESSEL_OK && !mw->w->faces) {
         tsl_diag_set(diag, path, 0, 0, 0, "%s stores no triangles: write meshes as PLY, "
                      "OBJ, OFF or STL", tessel_format_name(mw->params.format));
@@ -644,7 +641,7 @@ tessel_status tessel_mesh_writer_close(tessel_mesh_writer *writer, tessel_diag *
     /* finish_output names the path; keep a copy past the outfile's end. */
     char name[512];
     snprintf(name, sizeof name, "%s", path);
-    st = finish_output(&mw->out, st, name, diag);
+    st = tsl_write_finish(&mw->out, st, name, diag);
     free(mw);
     return st;
 }

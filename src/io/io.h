@@ -242,6 +242,16 @@ extern const tsl_format_writer tsl_writer_obj;
 extern const tsl_format_writer tsl_writer_off;
 extern const tsl_format_writer tsl_writer_stl;
 
+/* Resolves params (NULL: defaults) and the format (AUTO: the extension of
+ * path) into *eff and the writer; diag names path when neither tells. */
+tessel_status tsl_write_setup(const char *path, const tessel_write_params *params,
+                              tessel_write_params *eff, const tsl_format_writer **w,
+                              tessel_diag *diag);
+/* After a writer failed (st) or finished: commit, or abort with a message
+ * naming path. */
+tessel_status tsl_write_finish(tsl_outfile *out, tessel_status st, const char *path,
+                               tessel_diag *diag);
+
 /* A whole cloud as PLY, keeping what tsl_vertices cannot carry: an
  * organized cloud is written as all width*height cells in row order (NaN
  * coordinates for missing cells) with "comment organized W H", and the
