@@ -140,9 +140,10 @@ static void turn(uint32_t *v)
  * is: one the forest turned is turned back (a slab component between two
  * band components that disagree then meets one of them the wrong way: a
  * boundary, not a mesh turned inside out). Slab components the orientation
- * leaves out are dropped for the front to mesh again. */
+ * leaves out are dropped, their points marked in redo for the front that
+ * closes the gap to mesh again. */
 static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, gp_collect *all,
-                                 double reach, double spacing, size_t small)
+                                 double reach, double spacing, size_t small, uint8_t *redo)
 {
     size_t count = all->count, ncomp = 0, band_tris = s->nt;
     uint32_t *comp = tsl_alloc_array(count + 1, sizeof *comp);
@@ -174,8 +175,11 @@ static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, g
             turn(all->tris + 3 * t);
     size_t w = 0;
     for (size_t t = 0; t < count; t++) {
-        if (t >= band_tris && comp[t] >= band_comps && drop[comp[t]])
+        if (t >= band_tris && comp[t] >= band_comps && drop[comp[t]]) {
+            for (int k = 0; k < 3; k++)
+                redo[all->tris[3 * t + (size_t)k]] = 1;
             continue;
+        }
         memmove(all->tris + 3 * w, all->tris + 3 * t, 3 * sizeof *all->tris);
         w++;
     }
@@ -228,6 +232,108 @@ static tessel_status flip_free(const tessel_cloud *c, const uint8_t *frozen, gp_
     free(before);
     free(at);
     free(touched);
+    return st;
+}
+
+/* The gap at the cut closed by a front over the points near it only: the
+ * band and the slab's points up to (1 + SWEEP_CONTEXT) reaches above the
+ * cut (free ones up to two reaches: farther up they are points the slab's
+ * front left out, and stay out) and those of slab components the
+ * orientation dropped, from the triangles among them; points
+ * with triangles beyond that are frozen, as the band's lowest. Then the
+ * flips there. The slab's other triangles are as mesh_slab left them, its
+ * seams between tiles closed and flipped already. */
+static tessel_status close_gap(const tsl_gp_slabs *s, const tessel_cloud *c, uint8_t *frozen,
+                               const uint8_t *redo, gp_collect *all, double reach,
+                               const tessel_greedy_params *params,
+                               const tessel_callbacks *callbacks, tessel_recon_summary *seam,
+                               size_t *flips)
+{
+    const int ax = s->axis;
+    double top = s->cut + (1.0 + SWEEP_CONTEXT) * reach, top_free = s->cut + 2.0 * reach;
+    size_t n = c->count, nt = all->count;
+    uint8_t *used = tsl_calloc_array(n + 1, 1), *fz = NULL;
+    uint32_t *map = tsl_alloc_array(n + 1, sizeof *map), *back = NULL, *sel = NULL;
+    gp_collect local = {NULL, 0, 0};
+    tessel_cloud lc;
+    memset(&lc, 0, sizeof lc);
+    tessel_status st = used && map ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    for (size_t i = 0; !st && i < 3 * nt; i++)
+        used[all->tris[i]] = 1;
+    size_t m = 0;
+    for (size_t i = 0; !st && i < n; i++) {
+        double x = c->xyz[3 * i + (size_t)ax];
+        bool in = i < s->np || redo[i] || x < (used[i] ? top : top_free);
+        map[i] = in ? (uint32_t)m++ : NONE;
+    }
+    if (!st && (!(back = tsl_alloc_array(m + 1, sizeof *back)) ||
+                !(fz = tsl_calloc_array(m + 1, 1)) ||
+                !(sel = tsl_alloc_array(nt + 1, sizeof *sel)) ||
+                tessel_cloud_alloc(&lc, m, c->normals != NULL, 0)))
+        st = TESSEL_ERR_NOMEM;
+    size_t ns = 0;
+    for (size_t i = 0; !st && i < n; i++) {
+        uint32_t j = map[i];
+        if (j == NONE)
+            continue;
+        back[j] = (uint32_t)i;
+        fz[j] = frozen[i];
+        memcpy(lc.xyz + 3 * (size_t)j, c->xyz + 3 * i, 3 * sizeof *lc.xyz);
+        if (c->normals)
+            memcpy(lc.normals + 3 * (size_t)j, c->normals + 3 * i, 3 * sizeof *lc.normals);
+    }
+    if (!st) {
+        memcpy(lc.offset, c->offset, sizeof lc.offset);
+        for (size_t t = 0; t < nt; t++) {
+            const uint32_t *v = all->tris + 3 * t;
+            bool in = map[v[0]] != NONE && map[v[1]] != NONE && map[v[2]] != NONE;
+            if (in) {
+                uint32_t w[3] = {map[v[0]], map[v[1]], map[v[2]]};
+                if ((st = tsl_gp_collect_emit(&local, w, 1)))
+                    break;
+                sel[ns++] = (uint32_t)t;
+                continue;
+            }
+            for (int k = 0; k < 3; k++)
+                if (map[v[k]] != NONE)
+                    fz[map[v[k]]] = 1; /* its fan goes on beyond */
+        }
+    }
+    if (!st) {
+        tessel_greedy_params sp = *params;
+        sp.tile_points = 0;
+        sp.orient_check = 0;
+        sp.flip = 0;
+        sp.existing = local.tris;
+        sp.existing_count = local.count;
+        sp.frozen = fz;
+        gp_collect more = {NULL, 0, 0};
+        tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
+        st = tsl_reconstruct_greedy_with(&lc, &sp, NULL, callbacks, &hold, seam);
+        if (!st)
+            st = tsl_gp_collect_emit(&local, more.tris, more.count);
+        free(more.tris);
+    }
+    if (!st && params->flip)
+        st = flip_free(&lc, fz, &local, params->threads, flips);
+    /* Back into the step's mesh: the triangles taken keep their slots (the
+     * flips rewrote them in place), the new ones follow. */
+    for (size_t t = 0; !st && t < ns; t++)
+        for (int k = 0; k < 3; k++)
+            all->tris[3 * (size_t)sel[t] + (size_t)k] = back[local.tris[3 * t + (size_t)k]];
+    for (size_t t = ns; !st && t < local.count; t++) {
+        uint32_t w[3];
+        for (int k = 0; k < 3; k++)
+            w[k] = back[local.tris[3 * t + (size_t)k]];
+        st = tsl_gp_collect_emit(all, w, 1);
+    }
+    tessel_cloud_free(&lc);
+    free(used);
+    free(map);
+    free(back);
+    free(fz);
+    free(sel);
+    free(local.tris);
     return st;
 }
 
@@ -351,7 +457,7 @@ tessel_status tsl_gp_slabs_step(tsl_gp_slabs *s, const tessel_cloud *slab, const
     memset(&c, 0, sizeof c);
     uint32_t *cgid = NULL;
     uint8_t *frozen = NULL;
-    gp_collect all = {NULL, 0, 0}, more = {NULL, 0, 0};
+    gp_collect all = {NULL, 0, 0};
     tessel_recon_summary ss, seam;
     memset(&ss, 0, sizeof ss);
     memset(&seam, 0, sizeof seam);
@@ -363,6 +469,9 @@ tessel_status tsl_gp_slabs_step(tsl_gp_slabs *s, const tessel_cloud *slab, const
         reach = s->reach;
     if (!st)
         st = join_cloud(s, slab, gid, &c, &cgid, &frozen);
+    uint8_t *redo = st ? NULL : tsl_calloc_array(c.count + 1, 1);
+    if (!st && !redo)
+        st = TESSEL_ERR_NOMEM;
     if (!st && s->nt) {
         /* The band's triangles first (orient_slab counts on it). */
         size_t need = all.count + s->nt;
@@ -374,25 +483,12 @@ tessel_status tsl_gp_slabs_step(tsl_gp_slabs *s, const tessel_cloud *slab, const
             all.count = need;
         }
         if (!st)
-            st = orient_slab(s, &c, &all, reach, spacing, params->tile_points / 4);
+            st = orient_slab(s, &c, &all, reach, spacing, params->tile_points / 4, redo);
     }
-    if (!st && s->np) {
-        tessel_greedy_params sp = *params;
-        sp.tile_points = 0;
-        sp.orient_check = 0;
-        sp.flip = 0;
-        sp.existing = all.tris;
-        sp.existing_count = all.count;
-        sp.frozen = frozen;
-        tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
-        st = tsl_reconstruct_greedy_with(&c, &sp, NULL, callbacks, &hold, &seam);
-        if (!st)
-            st = tsl_gp_collect_emit(&all, more.tris, more.count);
-        size_t flips = 0;
-        if (!st && params->flip)
-            st = flip_free(&c, frozen, &all, params->threads, &flips);
-        ss.flips += flips;
-    }
+    size_t flips = 0;
+    if (!st && s->np)
+        st = close_gap(s, &c, frozen, redo, &all, reach, params, callbacks, &seam, &flips);
+    ss.flips += flips;
     size_t written = 0;
     if (!st)
         st = split(s, &c, cgid, frozen, &all, next_cut, reach, out, &written);
@@ -413,7 +509,7 @@ tessel_status tsl_gp_slabs_step(tsl_gp_slabs *s, const tessel_cloud *slab, const
     tessel_cloud_free(&c);
     free(cgid);
     free(frozen);
+    free(redo);
     free(all.tris);
-    free(more.tris);
     return st;
 }
