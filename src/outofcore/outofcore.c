@@ -364,10 +364,6 @@ static tessel_status write_output(const char *in, const char *out,
     tessel_status st = tsl_write_setup(out, wp, &eff, &w, diag);
     if (st)
         return st;
-    if (!w->vertices || !w->begin) {
-        tsl_diag_set(diag, out, 0, 0, 0, "out of core, meshes are written as PLY, OBJ or OFF");
-        return TESSEL_ERR_UNSUPPORTED;
-    }
     size_t words = (size_t)(n + 63) / 64;
     uint32_t *rank = tsl_alloc_array(words + 1, sizeof *rank);
     uint32_t *batch = tsl_alloc_array(3 * TRI_BATCH, sizeof *batch);
@@ -430,6 +426,26 @@ done:
 
 /* ---- the whole ---- */
 
+/* Progress of the slab being meshed within the whole sweep (never
+ * backwards: each stage inside a slab counts from 0 again), and the
+ * caller's cancellation heard inside a slab. */
+typedef struct slab_progress {
+    const tessel_callbacks *user;
+    size_t k, slabs;
+    double shown;
+} slab_progress;
+
+static int slab_progress_fn(void *data, const char *stage, double fraction)
+{
+    (void)stage;
+    slab_progress *p = data;
+    double f = ((double)p->k + (fraction > 0.0 && fraction < 1.0 ? fraction : 0.0)) /
+               (double)p->slabs;
+    if (f > p->shown)
+        p->shown = f;
+    return tsl_progress(p->user, "out of core: meshing", p->shown) != TESSEL_OK;
+}
+
 static tessel_status sweep(scratch *sc, const float *cuts, size_t slabs, int axis, int normals,
                            double offset[3], const tessel_greedy_params *params,
                            const tessel_callbacks *cb, spool *sp, tessel_recon_summary *sum,
@@ -438,8 +454,11 @@ static tessel_status sweep(scratch *sc, const float *cuts, size_t slabs, int axi
     tsl_gp_slabs band;
     tsl_gp_slabs_init(&band, axis);
     tessel_triangle_sink sink = {spool_emit, sp};
+    slab_progress prog = {cb, 0, slabs, 0.0};
+    tessel_callbacks inner = {slab_progress_fn, cb ? cb->log : NULL, &prog};
     tessel_status st = TESSEL_OK;
     for (size_t k = 0; k < slabs && !st; k++) {
+        prog.k = k;
         tessel_cloud slab;
         memset(&slab, 0, sizeof slab);
         uint32_t *gid = NULL;
@@ -447,9 +466,7 @@ static tessel_status sweep(scratch *sc, const float *cuts, size_t slabs, int axi
         double cut = k ? (double)cuts[k - 1] : -INFINITY;
         double next = k + 1 < slabs ? (double)cuts[k] : INFINITY;
         if (!st)
-            st = tsl_progress(cb, "out of core: meshing", (double)k / (double)slabs);
-        if (!st)
-            st = tsl_gp_slabs_step(&band, &slab, gid, cut, next, params, NULL, &sink, sum);
+            st = tsl_gp_slabs_step(&band, &slab, gid, cut, next, params, &inner, &sink, sum);
         tessel_cloud_free(&slab);
         free(gid);
     }
@@ -479,6 +496,17 @@ tessel_status tessel_reconstruct_greedy_file(const char *in, const char *out,
     uint64_t memory = o.memory ? o.memory : physical_memory() / 2;
     if (p.existing_count || p.frozen)
         return TESSEL_ERR_INVALID_ARG;
+    /* The output's format first: a file it cannot write should not cost a
+     * sweep. */
+    tessel_write_params eff;
+    const tsl_format_writer *w;
+    tessel_status valid = tsl_write_setup(out, write_params, &eff, &w, diag);
+    if (valid)
+        return valid;
+    if (!w->vertices || !w->begin) {
+        tsl_diag_set(diag, out, 0, 0, 0, "out of core, meshes are written as PLY, OBJ or OFF");
+        return TESSEL_ERR_UNSUPPORTED;
+    }
     scratch sc;
     memset(&sc, 0, sizeof sc);
     survey sv = {callbacks, 0, {0, 0, 0}, NULL, 0, 0x7e55e1u};
