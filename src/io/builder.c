@@ -108,6 +108,11 @@ tessel_status tsl_builder_reserve(tsl_builder *b, size_t points, size_t triangle
 {
     if ((uint64_t)points > b->max_points || (uint64_t)triangles > b->max_faces)
         return TESSEL_ERR_LIMIT;
+    if (b->flush) {
+        /* A chunk at most, and faces are not kept. */
+        points = points < b->chunk ? points : b->chunk;
+        triangles = 0;
+    }
     if (points > b->cap) {
         tessel_status st = resize_points(b, points);
         if (st != TESSEL_OK)
@@ -125,16 +130,30 @@ tessel_status tsl_builder_reserve(tsl_builder *b, size_t points, size_t triangle
     return TESSEL_OK;
 }
 
+/* Room for one more point: the arrays grown, or in sink mode the full
+ * chunk flushed. */
+static tessel_status make_room(tsl_builder *b)
+{
+    /* In sink mode the arrays hold a chunk, not all points so far. */
+    if (tsl_builder_pushed(b) >= b->max_points)
+        return TESSEL_ERR_LIMIT;
+    if (b->count < b->cap)
+        return TESSEL_OK;
+    if (tsl_builder_full(b))
+        return tsl_builder_flush(b);
+    size_t new_cap = b->cap < 1024 ? 1024 : b->cap + b->cap / 2;
+    if ((uint64_t)new_cap > b->max_points)
+        new_cap = (size_t)b->max_points;
+    if (b->flush && new_cap > b->chunk)
+        new_cap = b->chunk;
+    return resize_points(b, new_cap);
+}
+
 tessel_status tsl_builder_point(tsl_builder *b, const double xyz[3], const float *normal,
                                 const uint8_t *rgb)
 {
-    if (b->count == b->cap) {
-        if ((uint64_t)b->count >= b->max_points)
-            return TESSEL_ERR_LIMIT;
-        size_t new_cap = b->cap < 1024 ? 1024 : b->cap + b->cap / 2;
-        if ((uint64_t)new_cap > b->max_points)
-            new_cap = (size_t)b->max_points;
-        tessel_status st = resize_points(b, new_cap);
+    if (b->count == b->cap || b->flush) {
+        tessel_status st = make_room(b);
         if (st != TESSEL_OK)
             return st;
     }
@@ -158,7 +177,7 @@ tessel_status tsl_builder_point(tsl_builder *b, const double xyz[3], const float
 
 tessel_status tsl_builder_polygon(tsl_builder *b, const uint32_t *idx, size_t n)
 {
-    if (n < 3)
+    if (n < 3 || b->flush)
         return TESSEL_OK;
     size_t add = n - 2;
     if ((uint64_t)b->tri_count + add > b->max_faces)
@@ -248,12 +267,9 @@ tessel_status tessel_world_to_local(const double *world, size_t count, float *xy
     return TESSEL_OK;
 }
 
-/* Drops non-finite points (compacting all arrays), fills remap (old index
- * -> new or TESSEL_NONE) when given, chooses the offset and converts xyz to
- * floats in place (b->xyz then holds count*3 floats). On failure (no memory
- * for the offset's sample) the points are compacted but still doubles. */
-static tessel_status compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
-                                    size_t *dropped)
+/* Drops non-finite points, compacting all arrays; fills remap (old index
+ * -> new or TESSEL_NONE) when given. Returns the points kept. */
+static size_t keep_finite(tsl_builder *b, uint32_t *remap)
 {
     size_t kept = 0;
     for (size_t i = 0; i < b->count; i++) {
@@ -274,6 +290,17 @@ static tessel_status compact_points(tsl_builder *b, uint32_t *remap, double offs
         }
         kept++;
     }
+    return kept;
+}
+
+/* Drops non-finite points (keep_finite), chooses the offset and converts
+ * xyz to floats in place (b->xyz then holds count*3 floats). On failure
+ * (no memory for the offset's sample) the points are compacted but still
+ * doubles. */
+static tessel_status compact_points(tsl_builder *b, uint32_t *remap, double offset[3],
+                                    size_t *dropped)
+{
+    size_t kept = keep_finite(b, remap);
     *dropped = b->count - kept;
     b->count = kept;
     tessel_status st = tsl_choose_offset(b->xyz, kept, offset);
@@ -292,6 +319,27 @@ static tessel_status compact_points(tsl_builder *b, uint32_t *remap, double offs
         }
     }
     return TESSEL_OK;
+}
+
+void tsl_builder_sink(tsl_builder *b, size_t chunk, tsl_flush_fn fn, void *user)
+{
+    b->flush = fn;
+    b->flush_user = user;
+    b->chunk = chunk ? chunk : 1;
+}
+
+tessel_status tsl_builder_flush(tsl_builder *b)
+{
+    if (!b->flush)
+        return TESSEL_OK;
+    /* The same rule finishing applies: a chunk holds finite points only. */
+    size_t pushed = b->count, kept = keep_finite(b, NULL);
+    b->dropped += pushed - kept;
+    b->count = kept;
+    tessel_status st = b->flush(b->flush_user, b);
+    b->flushed += pushed;
+    b->count = 0;
+    return st;
 }
 
 /* Shrinks the arrays to count points; failures to shrink are harmless. */

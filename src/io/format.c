@@ -162,6 +162,37 @@ static void diag_clear(tessel_diag *diag)
         memset(diag, 0, sizeof *diag);
 }
 
+tessel_status tsl_read_setup(const uint8_t *data, size_t size, const char *name,
+                             const tessel_read_params *params, tsl_builder *b,
+                             tsl_parse_fn *fn, tessel_diag *diag)
+{
+    tessel_read_params def = tessel_read_params_default();
+    if (!params)
+        params = &def;
+    tessel_status st = read_format(data, size, name, params, fn, diag);
+    if (st != TESSEL_OK)
+        return st;
+    tsl_builder_init(b, params);
+    if (params->bbox) {
+        /* A box filters LAS records as they are emitted (src/io/las.c). */
+        const double *box = params->bbox;
+        for (int k = 0; k < 3; k++)
+            if (!(box[k] <= box[k + 3])) {
+                tsl_diag_set(diag, name, 0, 0, 0,
+                             "bounding box %c range [%g, %g] is empty or not a number",
+                             "xyz"[k], box[k], box[k + 3]);
+                return TESSEL_ERR_INVALID_ARG;
+            }
+        if (*fn != tsl_parse_las) {
+            tsl_diag_set(diag, name, 0, 0, 0,
+                         "a bounding box applies to LAS and LAZ input only");
+            return TESSEL_ERR_UNSUPPORTED;
+        }
+        b->bbox = box;
+    }
+    return TESSEL_OK;
+}
+
 /* What tessel_cloud_parse and tessel_mesh_parse share: the arguments
  * checked (a NULL name reads as ""), the data parsed into b, which the
  * caller frees in any case; on failure diag says something. */
@@ -172,35 +203,14 @@ static tessel_status parse_buffer(tsl_builder *b, const void *data, size_t size,
     memset(b, 0, sizeof *b);
     if (!data && size)
         return TESSEL_ERR_INVALID_ARG;
-    tessel_read_params def = tessel_read_params_default();
-    if (!params)
-        params = &def;
     if (!*name)
         *name = "";
     if (!data)
         data = "";
     tsl_parse_fn fn;
-    tessel_status st = read_format(data, size, *name, params, &fn, diag);
+    tessel_status st = tsl_read_setup(data, size, *name, params, b, &fn, diag);
     if (st != TESSEL_OK)
         return st;
-    tsl_builder_init(b, params);
-    if (params->bbox) {
-        /* A box filters LAS records as they are emitted (src/io/las.c). */
-        const double *box = params->bbox;
-        for (int k = 0; k < 3; k++)
-            if (!(box[k] <= box[k + 3])) {
-                tsl_diag_set(diag, *name, 0, 0, 0,
-                             "bounding box %c range [%g, %g] is empty or not a number",
-                             "xyz"[k], box[k], box[k + 3]);
-                return TESSEL_ERR_INVALID_ARG;
-            }
-        if (fn != tsl_parse_las) {
-            tsl_diag_set(diag, *name, 0, 0, 0,
-                         "a bounding box applies to LAS and LAZ input only");
-            return TESSEL_ERR_UNSUPPORTED;
-        }
-        b->bbox = box;
-    }
     st = fn(data, size, *name, want_faces, b, diag);
     if (st != TESSEL_OK && diag && !diag->message[0])
         tsl_diag_set(diag, *name, 0, 0, 0, "%s", tessel_status_str(st));

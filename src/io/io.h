@@ -19,7 +19,12 @@
 
 /* ---- reading ---- */
 
-typedef struct tsl_builder {
+typedef struct tsl_builder tsl_builder;
+/* Sink mode: receives b->count finite points (b->xyz, and b->normals /
+ * b->rgb when declared); a status other than TESSEL_OK stops the parse. */
+typedef tessel_status (*tsl_flush_fn)(void *user, const tsl_builder *b);
+
+struct tsl_builder {
     uint64_t max_points, max_faces;  /* from tessel_read_params */
     size_t count, cap;
     double *xyz;                     /* count*3 */
@@ -32,7 +37,14 @@ typedef struct tsl_builder {
     double viewpoint[3];
     int has_viewpoint;
     const double *bbox;              /* LAS/LAZ: keep points in it (tessel_read_params.bbox) */
-} tsl_builder;
+    /* Sink mode (tsl_builder_sink), for streaming: every chunk points go
+     * to flush instead of piling up, so memory stays O(chunk). */
+    tsl_flush_fn flush;              /* NULL: collect everything */
+    void *flush_user;
+    size_t chunk;                    /* points per flush */
+    uint64_t flushed;                /* points pushed before the current ones */
+    uint64_t dropped;                /* non-finite points not flushed */
+};
 
 void tsl_builder_init(tsl_builder *b, const tessel_read_params *params);
 /* Declares which attributes follow (call before the first point). */
@@ -52,6 +64,26 @@ tessel_status tsl_builder_point(tsl_builder *b, const double xyz[3], const float
  * knows where they came from. Polygons with fewer than 3 vertices are
  * ignored. TESSEL_ERR_LIMIT past max_faces. */
 tessel_status tsl_builder_polygon(tsl_builder *b, const uint32_t *idx, size_t n);
+
+/* Switches b to sink mode: from now on tsl_builder_point hands every chunk
+ * (>= 1) points to fn, non-finite ones dropped and counted in b->dropped,
+ * and reuses the arrays; tsl_builder_reserve never sizes beyond chunk.
+ * Grids, viewpoints and faces are not collected. */
+void tsl_builder_sink(tsl_builder *b, size_t chunk, tsl_flush_fn fn, void *user);
+/* Sink mode: hands the points pushed since the last flush (maybe none) to
+ * the sink; the end of a parse calls it for the last, short chunk. No-op
+ * otherwise. */
+tessel_status tsl_builder_flush(tsl_builder *b);
+/* Points pushed so far, flushed or not: what a parser numbers by. */
+static inline uint64_t tsl_builder_pushed(const tsl_builder *b)
+{
+    return b->flushed + b->count;
+}
+/* Sink mode: the next point flushes the chunk held now. */
+static inline bool tsl_builder_full(const tsl_builder *b)
+{
+    return b->flush && b->count == b->cap && b->cap >= b->chunk;
+}
 
 /* Moves the result out (the builder is left empty). */
 tessel_status tsl_builder_finish_cloud(tsl_builder *b, tessel_cloud *cloud);
@@ -116,6 +148,14 @@ static inline float tsl_local_coord(double world, double offset)
 typedef tessel_status (*tsl_parse_fn)(const uint8_t *data, size_t size, const char *name,
                                       int want_faces, tsl_builder *b, tessel_diag *diag);
 
+/* The part of a read before parsing, shared by tessel_cloud_parse and the
+ * streaming reader: params (NULL: defaults) checked, the format chosen
+ * (params, then name's extension, then data's first bytes), b initialised
+ * with the limits and box. diag says why on failure. */
+tessel_status tsl_read_setup(const uint8_t *data, size_t size, const char *name,
+                             const tessel_read_params *params, tsl_builder *b,
+                             tsl_parse_fn *fn, tessel_diag *diag);
+
 tessel_status tsl_parse_ply(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag);
 tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
@@ -157,13 +197,28 @@ tessel_status tsl_las_header_parse(const uint8_t *data, size_t size, uint64_t fi
 const uint8_t *tsl_las_find_vlr(const uint8_t *data, const tsl_las_header *h,
                                 const char *user_id, unsigned record_id, size_t *length);
 
+/* What tsl_parse_las checks before it emits: the header, and for
+ * uncompressed data the point count against the bytes that follow and the
+ * EVLRs; *n is then the number of records at h->point_offset (0 for LAZ,
+ * whose count the LAZ reader checks). */
+tessel_status tsl_las_check(const uint8_t *data, size_t size, const char *name,
+                            tsl_las_header *h, size_t *n, tessel_diag *diag);
+
+/* Whether h's point format carries RGB. */
+bool tsl_las_has_rgb(const tsl_las_header *h);
+/* How far RGB is shifted down: 8 when a value of the n records exceeds
+ * 255 (16-bit colours), else 0 (many writers store 8-bit values). A read
+ * decides over all the records it emits. */
+int tsl_las_rgb_shift(const uint8_t *records, size_t n, const tsl_las_header *h);
+
 /* Hands n point records (record_length apart, as a LAS file stores them) to
- * the builder: world coordinates X * scale + offset in double, RGB (16-bit
- * values scaled down to 8 when any of the n exceeds 255); with b->bbox only
- * the points inside it. at: the records' byte offset in the file, for
- * diagnostics. */
+ * the builder: world coordinates X * scale + offset in double, RGB shifted
+ * down by rgb_shift (< 0: tsl_las_rgb_shift of these n); with b->bbox only
+ * the points inside it. at: the records' byte offset in the file (for LAZ,
+ * where they would be uncompressed), for diagnostics. */
 tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_header *h,
-                           const char *name, uint64_t at, tsl_builder *b, tessel_diag *diag);
+                           int rgb_shift, const char *name, uint64_t at, tsl_builder *b,
+                           tessel_diag *diag);
 
 /* Reads a whole file into memory (NUL-terminated for text parsers; *size
  * excludes the NUL). */

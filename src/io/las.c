@@ -241,8 +241,24 @@ static bool las_in_box(const double xyz[3], const double *box)
            xyz[1] <= box[4] && xyz[2] <= box[5];
 }
 
+bool tsl_las_has_rgb(const tsl_las_header *h) { return las_rgb_offset[h->format] != 0; }
+
+int tsl_las_rgb_shift(const uint8_t *records, size_t n, const tsl_las_header *h)
+{
+    unsigned rgb_at = las_rgb_offset[h->format];
+    if (!rgb_at)
+        return 0;
+    for (size_t i = 0; i < n; i++) {
+        const uint8_t *c = records + i * h->record_length + rgb_at;
+        if (rd_u16(c) > 255 || rd_u16(c + 2) > 255 || rd_u16(c + 4) > 255)
+            return 8;
+    }
+    return 0;
+}
+
 tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_header *h,
-                           const char *name, uint64_t at, tsl_builder *b, tessel_diag *diag)
+                           int rgb_shift, const char *name, uint64_t at, tsl_builder *b,
+                           tessel_diag *diag)
 {
     size_t record_length = h->record_length;
     size_t kept = n;
@@ -263,16 +279,11 @@ tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_heade
     }
     const uint8_t *rec = records;
     unsigned rgb_at = las_rgb_offset[h->format];
-    /* Colours are 16-bit in the spec but many writers store 8-bit values:
-     * scale down only when some value needs it. */
-    int rgb_shift = 0;
-    if (rgb_at) {
-        for (size_t i = 0; i < n && !rgb_shift; i++) {
-            const uint8_t *c = rec + i * record_length + rgb_at;
-            if (rd_u16(c) > 255 || rd_u16(c + 2) > 255 || rd_u16(c + 4) > 255)
-                rgb_shift = 8;
-        }
-    }
+    if (rgb_shift < 0)
+        rgb_shift = tsl_las_rgb_shift(records, n, h);
+    /* The records' numbers in the file, for messages (a streamed read
+     * emits a window at a time). */
+    uint64_t first = at >= h->point_offset ? (at - h->point_offset) / record_length : 0;
     tessel_status st = tsl_builder_attributes(b, 0, rgb_at != 0);
     if (st == TESSEL_OK)
         st = tsl_builder_reserve(b, kept, 0);
@@ -294,10 +305,37 @@ tessel_status tsl_las_emit(const uint8_t *records, size_t n, const tsl_las_heade
         st = tsl_builder_point(b, xyz, NULL, rgb_at ? rgb : NULL);
         if (st != TESSEL_OK) {
             tsl_diag_set(diag, name, 0, 1, at + (uint64_t)(rec - records),
-                         "LAS point %zu: %s", i, tessel_status_str(st));
+                         "LAS point %llu: %s", (unsigned long long)(first + i),
+                         tessel_status_str(st));
             return st;
         }
     }
+    return TESSEL_OK;
+}
+
+tessel_status tsl_las_check(const uint8_t *data, size_t size, const char *name,
+                            tsl_las_header *h, size_t *n, tessel_diag *diag)
+{
+    *n = 0;
+    tessel_status st = tsl_las_header_parse(data, size, size, name, h, diag);
+    if (st != TESSEL_OK || h->compressed)
+        return st;
+    size_t available = size - h->point_offset;
+    if (h->count > available / h->record_length) {
+        tsl_diag_set(diag, name, 0, 1, h->point_offset,
+                     "LAS header announces %llu points of %zu bytes from byte %zu, but "
+                     "only %zu bytes follow (room for %zu points)",
+                     (unsigned long long)h->count, h->record_length, h->point_offset,
+                     available, available / h->record_length);
+        return TESSEL_ERR_PARSE;
+    }
+    size_t points_end = h->point_offset + (size_t)h->count * h->record_length;
+    if (h->minor >= 4) {
+        st = las_check_evlrs(data, size, points_end, h->evlr_start, h->evlr_count, name, diag);
+        if (st != TESSEL_OK)
+            return st;
+    }
+    *n = (size_t)h->count;
     return TESSEL_OK;
 }
 
@@ -306,27 +344,11 @@ tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
 {
     (void)want_faces;
     tsl_las_header h;
-    tessel_status st = tsl_las_header_parse(data, size, size, name, &h, diag);
+    size_t n;
+    tessel_status st = tsl_las_check(data, size, name, &h, &n, diag);
     if (st != TESSEL_OK)
         return st;
     if (h.compressed)
         return tsl_laz_parse(data, size, name, &h, b, diag);
-
-    size_t available = size - h.point_offset;
-    if (h.count > available / h.record_length) {
-        tsl_diag_set(diag, name, 0, 1, h.point_offset,
-                     "LAS header announces %llu points of %zu bytes from byte %zu, but "
-                     "only %zu bytes follow (room for %zu points)",
-                     (unsigned long long)h.count, h.record_length, h.point_offset, available,
-                     available / h.record_length);
-        return TESSEL_ERR_PARSE;
-    }
-    size_t n = (size_t)h.count;
-    size_t points_end = h.point_offset + n * h.record_length;
-    if (h.minor >= 4) {
-        st = las_check_evlrs(data, size, points_end, h.evlr_start, h.evlr_count, name, diag);
-        if (st != TESSEL_OK)
-            return st;
-    }
-    return tsl_las_emit(data + h.point_offset, n, &h, name, h.point_offset, b, diag);
+    return tsl_las_emit(data + h.point_offset, n, &h, -1, name, h.point_offset, b, diag);
 }

@@ -969,6 +969,33 @@ static bool boxes_meet(const double lo[3], const double hi[3], const double *box
     return true;
 }
 
+tessel_status tsl_laz_select(tsl_laz *z, const tsl_builder *b, uint8_t **select,
+                             uint64_t *points, tessel_diag *diag)
+{
+    const tsl_las_header *zh = &z->info.header;
+    /* COPC and a box: only the chunks whose node meets it (a chunk the
+     * hierarchy does not list is decoded). The emission filters points. */
+    size_t chunks = z->info.chunk_count;
+    uint64_t n = zh->count;
+    *select = NULL;
+    if (b->bbox && z->info.copc && (*select = malloc(chunks ? chunks : 1)) != NULL) {
+        n = 0;
+        for (size_t k = 0; k < chunks; k++) {
+            double lo[3], hi[3];
+            (*select)[k] = !tsl_laz_chunk_bounds(z, k, lo, hi) || boxes_meet(lo, hi, b->bbox);
+            n += (*select)[k] ? tsl_laz_chunk_points(z, k) : 0;
+        }
+    }
+    *points = n;
+    if (n > b->max_points && !b->bbox) {
+        tsl_diag_set(diag, z->name, 0, 1, count_field(zh),
+                     "LAS file has %llu points, above the limit of %llu",
+                     (unsigned long long)n, (unsigned long long)b->max_points);
+        return TESSEL_ERR_LIMIT;
+    }
+    return TESSEL_OK;
+}
+
 tessel_status tsl_laz_parse(const uint8_t *data, size_t size, const char *name,
                             const tsl_las_header *h, tsl_builder *b, tessel_diag *diag)
 {
@@ -978,25 +1005,9 @@ tessel_status tsl_laz_parse(const uint8_t *data, size_t size, const char *name,
     if (st != TESSEL_OK)
         return st;
     const tsl_las_header *zh = &z->info.header;
-    /* COPC and a box: only the chunks whose node meets it (a chunk the
-     * hierarchy does not list is decoded). The emission filters points. */
-    size_t chunks = z->info.chunk_count;
-    uint8_t *select = NULL;
-    uint64_t n = zh->count;
-    if (b->bbox && z->info.copc && (select = malloc(chunks ? chunks : 1)) != NULL) {
-        n = 0;
-        for (size_t k = 0; k < chunks; k++) {
-            double lo[3], hi[3];
-            select[k] = !tsl_laz_chunk_bounds(z, k, lo, hi) || boxes_meet(lo, hi, b->bbox);
-            n += select[k] ? tsl_laz_chunk_points(z, k) : 0;
-        }
-    }
-    if (n > b->max_points && !b->bbox) {
-        tsl_diag_set(diag, name, 0, 1, count_field(zh),
-                     "LAS file has %llu points, above the limit of %llu",
-                     (unsigned long long)n, (unsigned long long)b->max_points);
-        st = TESSEL_ERR_LIMIT;
-    }
+    uint8_t *select;
+    uint64_t n;
+    st = tsl_laz_select(z, b, &select, &n, diag);
     uint8_t *records = NULL;
     if (st == TESSEL_OK && n && !(records = tsl_alloc_array((size_t)n, zh->record_length))) {
         tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %llu decoded LAZ points",
@@ -1006,7 +1017,7 @@ tessel_status tsl_laz_parse(const uint8_t *data, size_t size, const char *name,
     if (st == TESSEL_OK)
         st = laz_decode(z, select, records, 0, diag);
     if (st == TESSEL_OK)
-        st = tsl_las_emit(records, (size_t)n, zh, name, zh->point_offset, b, diag);
+        st = tsl_las_emit(records, (size_t)n, zh, -1, name, zh->point_offset, b, diag);
     free(records);
     free(select);
     tsl_laz_close(z);

@@ -72,6 +72,14 @@ tessel_status tsl_laz_read_next(tsl_laz *laz, uint8_t *records, size_t *count,
 tessel_status tsl_laz_decode_all(tsl_laz *laz, uint8_t *records, int threads,
                                  tessel_diag *diag);
 
+/* The chunks a read of z into b decodes: with b's box and a COPC
+ * hierarchy, (*select)[k] says which (the nodes that meet the box, and the
+ * chunks the hierarchy does not list), else *select is NULL (all);
+ * *points: the points in them. TESSEL_ERR_LIMIT above b's limit (without
+ * a box; with one, emission counts the points inside). Free *select. */
+tessel_status tsl_laz_select(tsl_laz *z, const tsl_builder *b, uint8_t **select,
+                             uint64_t *points, tessel_diag *diag);
+
 /* The LAS reader's entry for compressed files: h is the checked header of
  * data. Decodes all points and emits them as tsl_parse_las does. */
 tessel_status tsl_laz_parse(const uint8_t *data, size_t size, const char *name,

@@ -261,6 +261,24 @@ static tessel_status normals_to_colours(tsl_builder *b)
     return TESSEL_OK;
 }
 
+/* Sink mode (streaming) cannot take back a chunk that went out: whether
+ * the columns 4-6 of an unnamed 6-column file are normals or colours is
+ * decided from the first chunk, and a later line that would have decided
+ * otherwise (the whole-file rule above) fails the read rather than give a
+ * cloud that differs from what tessel_cloud_read gives. Naming the columns
+ * lifts the doubt. */
+static tessel_status sink_colours(tessel_diag *diag, const char *name, uint64_t line,
+                                  const tsl_builder *b, int were_colours)
+{
+    tsl_diag_set(diag, name, line, 0, 0,
+                 "columns 4-6 were read as %s from the first %zu points (a chunked read "
+                 "decides from the first chunk), but the whole file reads as %s: name the "
+                 "columns in a first line such as '# x y z %s'",
+                 were_colours ? "colours" : "normals", b->chunk,
+                 were_colours ? "normals" : "colours", were_colours ? "nx ny nz" : "r g b");
+    return TESSEL_ERR_UNSUPPORTED;
+}
+
 tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag)
 {
@@ -273,6 +291,9 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
     uint64_t block_expected = 0, block_seen = 0, block_line = 0;
     /* For unnamed 6-column files: could columns 4-6 be colours? */
     bool colour_like = true, long_vector = false;
+    /* In sink mode that is decided when the first chunk goes out (-1: not
+     * yet, 0: normals, 1: colours); see sink_colours. */
+    int decided = -1;
     tessel_status st;
 
     while (next_line(&it, &s, &e)) {
@@ -325,7 +346,7 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
             }
             have_layout = 1;
         }
-        if (b->count == 0) {
+        if (tsl_builder_pushed(b) == 0) {
             st = tsl_builder_attributes(b, lay.has_normals, lay.has_rgb);
             /* Lines are about as long as this one: reserve for that,
              * bounded by the size of the file (never by a header) and
@@ -375,7 +396,16 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
                              (unsigned long long)lay.defined_at, got);
             return TESSEL_ERR_PARSE;
         }
-        if (lay.has_normals && !lay.named && colour_like) {
+        bool ambiguous = lay.has_normals && !lay.named;
+        if (ambiguous && decided < 0 && tsl_builder_full(b)) {
+            /* This point flushes the first chunk: decide now. */
+            decided = colour_like && long_vector;
+            if (decided && (st = normals_to_colours(b)) != TESSEL_OK) {
+                tsl_diag_set(diag, name, it.line, 0, 0, "%s", tessel_status_str(st));
+                return st;
+            }
+        }
+        if (ambiguous && colour_like) {
             double len2 = 0;
             for (int k = COL_NX; k <= COL_NZ; k++) {
                 colour_like = colour_like && v[k] >= 0 && v[k] <= 255 && v[k] == floor(v[k]);
@@ -384,11 +414,19 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
             long_vector = long_vector || len2 > 2.25;
         }
         float normal[3] = {(float)v[COL_NX], (float)v[COL_NY], (float)v[COL_NZ]};
-        st = tsl_builder_point(b, v, lay.has_normals ? normal : NULL,
-                               lay.has_rgb ? rgb : NULL);
+        if (decided == 1) {
+            if (!colour_like)
+                return sink_colours(diag, name, it.line, b, 1);
+            for (int k = 0; k < 3; k++)
+                rgb[k] = (uint8_t)normal[k]; /* as normals_to_colours */
+            st = tsl_builder_point(b, v, NULL, rgb);
+        } else {
+            st = tsl_builder_point(b, v, lay.has_normals ? normal : NULL,
+                                   lay.has_rgb ? rgb : NULL);
+        }
         if (st != TESSEL_OK) {
-            tsl_diag_set(diag, name, it.line, 0, 0, "point %zu: %s", b->count + 1,
-                         tessel_status_str(st));
+            tsl_diag_set(diag, name, it.line, 0, 0, "point %llu: %s",
+                         (unsigned long long)tsl_builder_pushed(b) + 1, tessel_status_str(st));
             return st;
         }
         block_seen++;
@@ -399,7 +437,10 @@ tessel_status tsl_parse_xyz(const uint8_t *data, size_t size, const char *name,
                      (unsigned long long)block_expected, (unsigned long long)block_seen);
         return TESSEL_ERR_PARSE;
     }
-    if (have_layout && lay.has_normals && !lay.named && colour_like && long_vector) {
+    if (decided == 0 && colour_like && long_vector)
+        return sink_colours(diag, name, it.line, b, 0);
+    if (decided < 0 && have_layout && lay.has_normals && !lay.named && colour_like &&
+        long_vector) {
         st = normals_to_colours(b);
         if (st != TESSEL_OK) {
             tsl_diag_set(diag, name, it.line, 0, 0, "%s", tessel_status_str(st));
