@@ -1482,6 +1482,10 @@ typedef struct tessel_smooth_recon_stats {
                                         not measured) */
     double noise_ratio;              /* the same in surface spacings */
     size_t points_used;              /* points after thinning */
+    int fitted;                      /* 1: the points were moved onto
+                                        quadrics fitted to their neighbours
+                                        in the whole cloud first (noise
+                                        above one surface spacing) */
     size_t representatives;          /* points triangulated */
     size_t vertices, triangles;      /* in the result */
     size_t border_edges;             /* edges with one triangle */

@@ -721,6 +721,51 @@ static void test_pipeline_thin_torus(void)
     tessel_cloud_free(&c);
 }
 
+/* A dense sphere under noise of four surface spacings: thinned to two and
+ * each kept point fitted to its neighbours in the whole cloud, the mesh
+ * lies much closer to the sphere than the noise (without the fit its RMS
+ * error is RMS_UNFITTED sigma), closed, and the same for 1 and 2 threads. */
+static void test_pipeline_dense_noise(void)
+{
+    const double sigma = 0.045; /* per coordinate, so also along the normal: 4 spacings */
+    tessel_mesh m[2];
+    tessel_smooth_recon_stats s;
+    for (int run = 0; run < 2; run++) {
+        tessel_cloud c;
+        CHECK(surf_sphere_fibonacci(&c, 100000, 0.3, 7) == TESSEL_OK);
+        free(c.normals);
+        c.normals = NULL;
+        surf_noise(&c, sigma, 7);
+        tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
+        p.threads = run + 1;
+        CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &m[run], &s) == TESSEL_OK);
+        tessel_cloud_free(&c);
+    }
+    tessel_mesh_report r = check(&m[0]);
+    CHECK_MSG(tessel_mesh_report_valid(&r) && r.self_intersections == 0 && r.components == 1 &&
+                  r.boundary_edges == 0,
+              "dense noisy sphere: %zu components, %zu boundary edges, %zu self-intersections",
+              r.components, r.boundary_edges, r.self_intersections);
+    CHECK_MSG(s.fitted && s.points_used < s.points / 2, "dense noisy sphere: fitted %d, %zu of %zu",
+              s.fitted, s.points_used, s.points);
+    double e2 = 0.0;
+    for (size_t v = 0; v < m[0].vertex_count; v++) {
+        const float *q = m[0].xyz + 3 * v;
+        double d = sqrt((double)q[0] * q[0] + (double)q[1] * q[1] + (double)q[2] * q[2]) - 1.0;
+        e2 += d * d;
+    }
+    double rms = sqrt(e2 / (double)m[0].vertex_count) / sigma;
+    CHECK_MSG(rms < 0.2, "dense noisy sphere: RMS error %.3f noise sigmas", rms);
+    CHECK(m[0].vertex_count == m[1].vertex_count && m[0].triangle_count == m[1].triangle_count &&
+          !memcmp(m[0].xyz, m[1].xyz, 3 * m[0].vertex_count * sizeof *m[0].xyz) &&
+          !memcmp(m[0].triangles, m[1].triangles, 3 * m[0].triangle_count * sizeof(uint32_t)));
+    printf("dense noisy sphere: noise %.2f surface spacings, %zu of %zu points used, RMS error "
+           "%.3f sigmas, %zu triangles\n",
+           s.noise_ratio, s.points_used, s.points, rms, m[0].triangle_count);
+    tessel_mesh_free(&m[0]);
+    tessel_mesh_free(&m[1]);
+}
+
 /* A small sphere (radius 0.08, 5 spacings) 0.3 from a unit sphere is an
  * object of its own: after the front it holds 100 of 21,826 triangles, a
  * stray piece to the repair, whose extra attempts around it must leave the
@@ -956,6 +1001,7 @@ int main(void)
     test_pipeline_touching_spheres();
     test_stray_pieces();
     test_pipeline_thin_torus();
+    test_pipeline_dense_noise();
     test_pipeline_small_object();
     test_pipeline_far_point();
     test_pipeline_threads_and_cancel();

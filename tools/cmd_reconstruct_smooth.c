@@ -47,9 +47,10 @@ static const char smooth_recon_help_fmt[] =
     "  --no-flip           refinement without diagonal flips\n"
     "  --spacing X         use this h (world units) instead of estimating it\n"
     "  --max-noise X       noise above X surface spacings (the cloud's own\n"
-    "                      estimate) thins the cloud until it is X: detail\n"
-    "                      finer than the noise cannot be recovered, and the\n"
-    "                      stages are tuned for noise of about a spacing\n"
+    "                      estimate) thins the cloud until it is X, each kept\n"
+    "                      point fitted to its neighbours in the whole cloud:\n"
+    "                      detail finer than the noise cannot be recovered,\n"
+    "                      and the fit averages the dropped points' noise away\n"
     "                      (default %g; 0: never thin)\n"
     "  --method smooth     this method\n"
     "  --ascii             write ascii PLY\n\n";
@@ -273,8 +274,8 @@ int cmd_reconstruct_smooth(int argc, char **argv)
     double seconds = cli_now() - t0;
     if (common.json) {
         printf("{\"method\": \"smooth\", \"points\": %zu, \"noise\": %.9g, "
-               "\"noise_ratio\": %.4g, \"points_used\": %zu, \"spacing\": %.9g, "
-               "\"cluster_diameter\": %.4g, "
+               "\"noise_ratio\": %.4g, \"points_used\": %zu, \"fitted\": %s, "
+               "\"spacing\": %.9g, \"cluster_diameter\": %.4g, "
                "\"representatives\": %zu, \"vertices\": %zu, \"triangles\": %zu, "
                "\"border_edges\": %zu, \"seeds\": %zu, \"bridges\": %zu, "
                "\"hole_triangles\": %zu, \"reoriented\": %zu, \"splits\": %zu, "
@@ -284,7 +285,8 @@ int cmd_reconstruct_smooth(int argc, char **argv)
                "\"simplify_seconds\": %.6f, \"front_seconds\": %.6f, "
                "\"refine_seconds\": %.6f, \"reconstruct_seconds\": %.6f, "
                "\"write_seconds\": %.6f, \"seconds\": %.6f, \"peak_mib\": %.1f",
-               n, s.noise, s.noise_ratio, s.points_used, s.spacing, s.cluster_diameter,
+               n, s.noise, s.noise_ratio, s.points_used, s.fitted ? "true" : "false", s.spacing,
+               s.cluster_diameter,
                s.representatives, s.vertices, s.triangles,
                s.border_edges,
                s.front.seeds, s.front.bridges, s.front.hole_triangles, s.reoriented,
@@ -298,8 +300,9 @@ int cmd_reconstruct_smooth(int argc, char **argv)
         if (s.points_used < n)
             fprintf(stderr,
                     "tessel: noise %.4g = %.2f surface spacings: thinned to %zu points "
-                    "(%.2f spacings; detail finer than the noise is not recoverable)\n",
-                    s.noise, s.noise_ratio, s.points_used, o.p.noise_ratio_max);
+                    "(%.2f spacings%s; detail finer than the noise is not recoverable)\n",
+                    s.noise, s.noise_ratio, s.points_used, o.p.noise_ratio_max,
+                    s.fitted ? ", each fitted to its neighbours in the whole cloud" : "");
         else if (s.noise > 0.0)
             fprintf(stderr, "tessel: noise %.4g = %.2f surface spacings\n", s.noise,
                     s.noise_ratio);

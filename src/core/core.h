@@ -151,6 +151,21 @@ static inline void tsl_uf_unite(uint32_t *parent, uint32_t a, uint32_t b)
         parent[a] = b;
 }
 
+/* A least-squares quadric height field z = a + b u + c v + d u^2 + e uv +
+ * f v^2 over the points idx[0 .. k) whose distance from the axis through q
+ * is at most sqrt(rho2), in the tangent frame of all k (PCA), refitted
+ * without the points beyond 3 residual standard deviations (another sheet)
+ * until none is dropped (core/noise.c). work holds 4 k doubles. False with
+ * fewer than 24 points in the cylinder or a singular fit. */
+typedef struct tsl_height {
+    double var;       /* residual variance of the last fit */
+    size_t inliers;   /* points within the trimming limit */
+    double normal[3]; /* unit axis of the frame */
+    double height;    /* the quadric at q: q + height * normal is on it */
+} tsl_height;
+bool tsl_height_fit(const float *xyz, const float q[3], const uint32_t *idx, size_t k,
+                    double rho2, double *work, tsl_height *out);
+
 /* qsort comparison of uint32_t values, ascending. */
 int tsl_cmp_u32(const void *a, const void *b);
 

@@ -110,11 +110,8 @@ static bool solve6(double a[6][6], double b[6], double x[6])
     return true;
 }
 
-/* The residual variance of a quadric height field over the cylinder of
- * squared radius rho2 about the seed q, in the tangent frame of the first
- * k neighbours idx[] (PCA). False with fewer than MIN_FIT points in it. */
-static bool cylinder_fit(const float *xyz, const float q[3], const uint32_t *idx, size_t k,
-                         double rho2, double *work, double *var, size_t *inliers)
+bool tsl_height_fit(const float *xyz, const float q[3], const uint32_t *idx, size_t k,
+                    double rho2, double *work, tsl_height *out)
 {
     double c[3] = {0.0, 0.0, 0.0}, m[9] = {0};
     for (size_t i = 0; i < k; i++)
@@ -153,10 +150,10 @@ static bool cylinder_fit(const float *xyz, const float q[3], const uint32_t *idx
     /* Least squares in scaled coordinates (u, v in units of rho), then
      * again without the points beyond TRIM residuals (another sheet within
      * the ball: the far wall of a thin tube), until none is dropped. */
-    double s = 1.0 / sqrt(rho2), limit2 = INFINITY, sigma2 = 0.0;
+    double s = 1.0 / sqrt(rho2), limit2 = INFINITY, sigma2 = 0.0, x[6];
     size_t kept = n;
     for (int round = 0; round < TRIM_ROUNDS; round++) {
-        double A[6][6] = {{0}}, B[6] = {0}, x[6];
+        double A[6][6] = {{0}}, B[6] = {0};
         size_t used = 0;
         for (size_t i = 0; i < n; i++) {
             double u = work[4 * i] * s, t = work[4 * i + 1] * s, z = work[4 * i + 2];
@@ -193,8 +190,11 @@ static bool cylinder_fit(const float *xyz, const float q[3], const uint32_t *idx
             break;
         kept = within;
     }
-    *var = sigma2;
-    *inliers = kept;
+    out->var = sigma2;
+    out->inliers = kept;
+    out->height = x[0];
+    for (int a = 0; a < 3; a++)
+        out->normal[a] = e[2][a];
     return true;
 }
 
@@ -217,10 +217,13 @@ static int seed_estimate(const tessel_index *ix, const float *xyz, const float q
     int why = SEED_NONE;
     for (size_t K = K_MIN; K <= k; K = 2 * K < k && 2 * K > K ? 2 * K : (K == k ? k + 1 : k)) {
         double R2 = (double)d2[K - 1];
-        size_t C = K / 2 < CYLINDER ? K / 2 : CYLINDER, in;
-        double rho2 = R2 * (double)C / (double)K, v;
-        if (!cylinder_fit(xyz, q, idx, K, rho2, work, &v, &in))
+        size_t C = K / 2 < CYLINDER ? K / 2 : CYLINDER;
+        double rho2 = R2 * (double)C / (double)K;
+        tsl_height fit;
+        if (!tsl_height_fit(xyz, q, idx, K, rho2, work, &fit))
             continue;
+        double v = fit.var;
+        size_t in = fit.inliers;
         if (R2 - rho2 < SLAB * SLAB * v) {
             why = SEED_NOISY;
             continue;

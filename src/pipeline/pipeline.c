@@ -65,7 +65,7 @@ tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
     p.front = tessel_front_params_default();
     p.refine = tessel_refine_params_default();
     p.auto_cluster_size = 1;
-    p.noise_ratio_max = 1.0;
+    p.noise_ratio_max = 2.0;
     p.threads = 0;
     return p;
 }
@@ -106,6 +106,84 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
     return TESSEL_OK;
 }
 
+/* Each point of thinned (a hash subsample of cloud, whose noise is ratio
+ * surface spacings) moved onto a quadric height field fitted to its k
+ * nearest points of cloud (tsl_height_fit, trimmed at 3 residual sigmas):
+ * the points thinning drops still average the noise away, by about
+ * sqrt(k / 6), instead of being lost. k = FIT_SPAN ratio^2, the points of
+ * a disc of radius 1.7 noise sigmas (FIT_SPAN = pi 1.7^2): wide enough for
+ * a tangent frame above the noise, narrow enough for thin parts (measured
+ * on the elephant at noise 1% of the diagonal: 2.3 sigmas lose its ears,
+ * F-score 94 against 98). Above FIT_POINTS they come from a hash subsample
+ * of the cloud, so the time is linear in the kept points; below FIT_MIN
+ * (a ratio of 2) a quadric would follow the noise: the points stay,
+ * *fitted 0. Each point reads the index and writes itself only: the same
+ * cloud for any thread count. */
+#define FIT_SPAN 9.0
+#define FIT_POINTS 256.0
+#define FIT_MIN 64.0
+
+static tessel_status fit_thinned(const tessel_cloud *cloud, double ratio, tessel_cloud *thinned,
+                                 int threads, int *fitted)
+{
+    *fitted = 0;
+    double span = FIT_SPAN * ratio * ratio;
+    if (span < FIT_MIN)
+        return TESSEL_OK;
+    size_t k_fit = span < FIT_POINTS ? (size_t)span : (size_t)FIT_POINTS;
+    double wide = FIT_POINTS / span < 1.0 ? FIT_POINTS / span : 1.0;
+    uint64_t limit = wide < 1.0 ? (uint64_t)(wide * 0x1.0p64) : UINT64_MAX;
+    size_t m = 0;
+    for (size_t i = 0; i < cloud->count; i++)
+        m += mix64(i) <= limit;
+    if (m < k_fit)
+        return TESSEL_OK;
+    float *xyz = tsl_alloc_array(m, 3 * sizeof *xyz);
+    if (!xyz)
+        return TESSEL_ERR_NOMEM;
+    for (size_t i = 0, j = 0; i < cloud->count; i++)
+        if (mix64(i) <= limit)
+            memcpy(xyz + 3 * j++, cloud->xyz + 3 * i, 3 * sizeof *xyz);
+    tessel_index *ix = NULL;
+    tessel_status st = tessel_index_build(&ix, xyz, m);
+    int nt = tsl_threads(threads);
+    uint32_t *idx = NULL;
+    float *dist = NULL;
+    double *work = NULL;
+    if (!st) {
+        idx = tsl_alloc_array((size_t)nt * k_fit, sizeof *idx);
+        dist = tsl_alloc_array((size_t)nt * k_fit, sizeof *dist);
+        work = tsl_alloc_array((size_t)nt * k_fit, 4 * sizeof *work);
+        if (!idx || !dist || !work)
+            st = TESSEL_ERR_NOMEM;
+    }
+    if (!st) {
+#pragma omp parallel for num_threads(nt) schedule(dynamic, 256)
+        for (size_t i = 0; i < thinned->count; i++) {
+            int t = omp_get_thread_num();
+            uint32_t *id = idx + (size_t)t * k_fit;
+            float *d2 = dist + (size_t)t * k_fit;
+            double *wk = work + (size_t)t * 4 * k_fit;
+            float *q = thinned->xyz + 3 * i;
+            size_t k = tessel_index_knn(ix, q, k_fit, id, d2);
+            tsl_height h;
+            if (k < k_fit || !tsl_height_fit(xyz, q, id, k, (double)d2[k - 1], wk, &h))
+                continue;
+            float moved[3];
+            for (int c = 0; c < 3; c++)
+                moved[c] = (float)(q[c] + h.height * h.normal[c]);
+            memcpy(q, moved, sizeof moved);
+        }
+    }
+    free(work);
+    free(dist);
+    free(idx);
+    tessel_index_destroy(ix);
+    free(xyz);
+    *fitted = st == TESSEL_OK;
+    return st;
+}
+
 /* The noise measured (s->noise, s->noise_ratio) and, above
  * params->noise_ratio_max surface spacings, the thinned cloud in *thinned
  * (*use points to it, else to cloud). */
@@ -129,7 +207,9 @@ static tessel_status measure_noise(const tessel_cloud *cloud, const tessel_smoot
     if (e.noise_ratio > p->noise_ratio_max) {
         /* Density scales with the kept fraction, the spacing with its root. */
         double keep = p->noise_ratio_max / e.noise_ratio;
-        if ((st = thin_cloud(cloud, keep * keep, thinned)))
+        if ((st = thin_cloud(cloud, keep * keep, thinned)) ||
+            (st = fit_thinned(cloud, e.noise_ratio, thinned,
+                              p->threads ? p->threads : p->smooth.threads, &s->fitted)))
             return st;
         *use = thinned;
         s->points_used = thinned->count;
