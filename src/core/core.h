@@ -162,9 +162,14 @@ typedef struct tsl_height {
     size_t inliers;   /* points within the trimming limit */
     double normal[3]; /* unit axis of the frame */
     double height;    /* the quadric at q: q + height * normal is on it */
+    double frame[2][3], scale, coef[6]; /* the tangent axes, 1 / rho and
+                                           a .. f (u, v scaled by it) */
 } tsl_height;
 bool tsl_height_fit(const float *xyz, const float q[3], const uint32_t *idx, size_t k,
                     double rho2, double *work, tsl_height *out);
+/* How far along h->normal the point q + d is from the quadric (positive:
+ * the quadric is that far on the normal's side). */
+double tsl_height_offset(const tsl_height *h, const double d[3]);
 
 /* qsort comparison of uint32_t values, ascending. */
 int tsl_cmp_u32(const void *a, const void *b);

@@ -193,9 +193,22 @@ bool tsl_height_fit(const float *xyz, const float q[3], const uint32_t *idx, siz
     out->var = sigma2;
     out->inliers = kept;
     out->height = x[0];
-    for (int a = 0; a < 3; a++)
+    out->scale = s;
+    for (int a = 0; a < 3; a++) {
         out->normal[a] = e[2][a];
+        out->frame[0][a] = e[0][a];
+        out->frame[1][a] = e[1][a];
+    }
+    memcpy(out->coef, x, sizeof x);
     return true;
+}
+
+double tsl_height_offset(const tsl_height *h, const double d[3])
+{
+    double u = tsl_dot(d, h->frame[0]) * h->scale, t = tsl_dot(d, h->frame[1]) * h->scale;
+    const double *x = h->coef;
+    return x[0] + x[1] * u + x[2] * t + x[3] * u * u + x[4] * u * t + x[5] * t * t -
+           tsl_dot(d, h->normal);
 }
 
 /* One seed's estimate, at the smallest ball (K_MIN, 2 K_MIN, ... k

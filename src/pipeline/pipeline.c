@@ -65,7 +65,7 @@ tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
     p.front = tessel_front_params_default();
     p.refine = tessel_refine_params_default();
     p.auto_cluster_size = 1;
-    p.noise_ratio_max = 2.0;
+    p.noise_ratio_max = 1.0;
     p.threads = 0;
     return p;
 }
@@ -83,10 +83,11 @@ static uint64_t mix64(uint64_t z)
  * everywhere); the viewpoint and the offset stay. */
 static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud *out)
 {
-    uint64_t limit = (uint64_t)(keep * 0x1.0p64);
+    bool all = keep >= 1.0;
+    uint64_t limit = all ? 0 : (uint64_t)(keep * 0x1.0p64);
     size_t n = 0;
     for (size_t i = 0; i < c->count; i++)
-        n += mix64(i) < limit;
+        n += all || mix64(i) < limit;
     tessel_status st = tessel_cloud_alloc(out, n, c->normals != NULL, c->rgb != NULL);
     if (st)
         return st;
@@ -94,7 +95,7 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
     memcpy(out->viewpoint, c->viewpoint, sizeof out->viewpoint);
     out->has_viewpoint = c->has_viewpoint;
     for (size_t i = 0, j = 0; i < c->count; i++) {
-        if (!(mix64(i) < limit))
+        if (!(all || mix64(i) < limit))
             continue;
         memcpy(out->xyz + 3 * j, c->xyz + 3 * i, 3 * sizeof *out->xyz);
         if (c->normals)
@@ -106,81 +107,125 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
     return TESSEL_OK;
 }
 
-/* Each point of thinned (a hash subsample of cloud, whose noise is ratio
- * surface spacings) moved onto a quadric height field fitted to its k
- * nearest points of cloud (tsl_height_fit, trimmed at 3 residual sigmas):
- * the points thinning drops still average the noise away, by about
- * sqrt(k / 6), instead of being lost. k = FIT_SPAN ratio^2, the points of
- * a disc of radius 1.7 noise sigmas (FIT_SPAN = pi 1.7^2): wide enough for
- * a tangent frame above the noise, narrow enough for thin parts (measured
- * on the elephant at noise 1% of the diagonal: 2.3 sigmas lose its ears,
- * F-score 94 against 98). Above FIT_POINTS they come from a hash subsample
- * of the cloud, so the time is linear in the kept points; below FIT_MIN
- * (a ratio of 2) a quadric would follow the noise: the points stay,
- * *fitted 0. Each point reads the index and writes itself only: the same
- * cloud for any thread count. */
+/* The points of thinned (a hash subsample of cloud, whose noise is ratio
+ * surface spacings) moved onto the surface that the whole cloud gives:
+ * quadric height fields (tsl_height_fit, trimmed at 3 residual sigmas) are
+ * fitted around centres one noise sigma apart (the hash subsample at a
+ * ratio of 1), each to its k nearest points of cloud, and every thinned
+ * point goes onto the quadric of its nearest centre. The points thinning
+ * drops still average the noise away, by about sqrt(k / 6), instead of
+ * being lost. k = FIT_SPAN ratio^2, the points of a disc of radius 1.7
+ * noise sigmas (FIT_SPAN = pi 1.7^2): wide enough for a tangent frame
+ * above the noise, narrow enough for thin parts (the elephant at noise 1%
+ * of the diagonal: 2.3 sigmas lose its ears, F-score 94 against 98), and a
+ * thinned point is at most about 0.6 sigma from its centre, well inside.
+ * Above FIT_POINTS the neighbours come from a hash subsample of the cloud,
+ * so the time is linear in the centres; below FIT_MIN (a ratio of 1.9) a
+ * quadric would follow the noise: the points stay, *fitted 0. Each point
+ * reads shared data and writes itself only: the same cloud for any thread
+ * count. */
 #define FIT_SPAN 9.0
 #define FIT_POINTS 256.0
-#define FIT_MIN 64.0
+#define FIT_MIN 32.0
+#define FIT_THIN 2.0
+#define BLEND 4
 
-static tessel_status fit_thinned(const tessel_cloud *cloud, double ratio, tessel_cloud *thinned,
-                                 int threads, int *fitted)
+/* The points of cloud whose index hashes at most limit (all for
+ * UINT64_MAX), their coordinates into a new array of *m. */
+static float *hash_subset(const tessel_cloud *cloud, uint64_t limit, size_t *m)
 {
+    size_t n = 0;
+    for (size_t i = 0; i < cloud->count; i++)
+        n += mix64(i) <= limit;
+    float *xyz = tsl_alloc_array(n ? n : 1, 3 * sizeof *xyz);
+    if (xyz)
+        for (size_t i = 0, j = 0; i < cloud->count; i++)
+            if (mix64(i) <= limit)
+                memcpy(xyz + 3 * j++, cloud->xyz + 3 * i, 3 * sizeof *xyz);
+    *m = n;
+    return xyz;
+}
+
+static uint64_t hash_limit(double fraction)
+{
+    return fraction < 1.0 ? (uint64_t)(fraction * 0x1.0p64) : UINT64_MAX;
+}
+
+static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double ratio,
+                                 tessel_cloud *thinned, int threads, int *fitted)
+{
+    double inv_s2 = 1.0 / (sigma * sigma);
     *fitted = 0;
     double span = FIT_SPAN * ratio * ratio;
     if (span < FIT_MIN)
         return TESSEL_OK;
-    size_t k_fit = span < FIT_POINTS ? (size_t)span : (size_t)FIT_POINTS;
-    double wide = FIT_POINTS / span < 1.0 ? FIT_POINTS / span : 1.0;
-    uint64_t limit = wide < 1.0 ? (uint64_t)(wide * 0x1.0p64) : UINT64_MAX;
-    size_t m = 0;
-    for (size_t i = 0; i < cloud->count; i++)
-        m += mix64(i) <= limit;
-    if (m < k_fit)
-        return TESSEL_OK;
-    float *xyz = tsl_alloc_array(m, 3 * sizeof *xyz);
-    if (!xyz)
-        return TESSEL_ERR_NOMEM;
-    for (size_t i = 0, j = 0; i < cloud->count; i++)
-        if (mix64(i) <= limit)
-            memcpy(xyz + 3 * j++, cloud->xyz + 3 * i, 3 * sizeof *xyz);
-    tessel_index *ix = NULL;
-    tessel_status st = tessel_index_build(&ix, xyz, m);
+    size_t k_fit = span < FIT_POINTS ? (size_t)span : (size_t)FIT_POINTS, m = 0, nc = 0;
     int nt = tsl_threads(threads);
-    uint32_t *idx = NULL;
-    float *dist = NULL;
-    double *work = NULL;
-    if (!st) {
-        idx = tsl_alloc_array((size_t)nt * k_fit, sizeof *idx);
-        dist = tsl_alloc_array((size_t)nt * k_fit, sizeof *dist);
-        work = tsl_alloc_array((size_t)nt * k_fit, 4 * sizeof *work);
-        if (!idx || !dist || !work)
-            st = TESSEL_ERR_NOMEM;
-    }
-    if (!st) {
-#pragma omp parallel for num_threads(nt) schedule(dynamic, 256)
-        for (size_t i = 0; i < thinned->count; i++) {
+    float *xyz = hash_subset(cloud, hash_limit(FIT_POINTS / span), &m);
+    float *cxyz = hash_subset(cloud, hash_limit(1.0 / (ratio * ratio)), &nc);
+    tsl_height *fit = tsl_alloc_array(nc ? nc : 1, sizeof *fit);
+    uint32_t *idx = tsl_alloc_array((size_t)nt * k_fit, sizeof *idx);
+    float *dist = tsl_alloc_array((size_t)nt * k_fit, sizeof *dist);
+    double *work = tsl_alloc_array((size_t)nt * k_fit, 4 * sizeof *work);
+    tessel_index *ix = NULL, *cx = NULL;
+    tessel_status st = TESSEL_OK;
+    if (!xyz || !cxyz || !fit || !idx || !dist || !work)
+        st = TESSEL_ERR_NOMEM;
+    else if (m < k_fit || !nc)
+        goto done;
+    if (!st && !(st = tessel_index_build(&ix, xyz, m)) &&
+        !(st = tessel_index_build(&cx, cxyz, nc))) {
+#pragma omp parallel num_threads(nt)
+        {
             int t = omp_get_thread_num();
             uint32_t *id = idx + (size_t)t * k_fit;
             float *d2 = dist + (size_t)t * k_fit;
             double *wk = work + (size_t)t * 4 * k_fit;
-            float *q = thinned->xyz + 3 * i;
-            size_t k = tessel_index_knn(ix, q, k_fit, id, d2);
-            tsl_height h;
-            if (k < k_fit || !tsl_height_fit(xyz, q, id, k, (double)d2[k - 1], wk, &h))
-                continue;
-            float moved[3];
-            for (int c = 0; c < 3; c++)
-                moved[c] = (float)(q[c] + h.height * h.normal[c]);
-            memcpy(q, moved, sizeof moved);
+#pragma omp for schedule(dynamic, 64)
+            for (size_t c = 0; c < nc; c++) {
+                const float *q = cxyz + 3 * c;
+                size_t k = tessel_index_knn(ix, q, k_fit, id, d2);
+                if (k < k_fit || !tsl_height_fit(xyz, q, id, k, (double)d2[k - 1], wk, &fit[c]))
+                    fit[c].inliers = 0; /* no fit here */
+            }
+#pragma omp for schedule(dynamic, 256)
+            for (size_t i = 0; i < thinned->count; i++) {
+                float *q = thinned->xyz + 3 * i;
+                uint32_t c[BLEND];
+                size_t nb = tessel_index_knn(cx, q, BLEND, c, NULL);
+                double w_sum = 0.0, move[3] = {0.0, 0.0, 0.0};
+                for (size_t j = 0; j < nb; j++) {
+                    const tsl_height *h = &fit[c[j]];
+                    if (!h->inliers)
+                        continue;
+                    const float *o = cxyz + 3 * (size_t)c[j];
+                    double d[3] = {(double)q[0] - o[0], (double)q[1] - o[1], (double)q[2] - o[2]};
+                    double along = tsl_dot(d, h->normal);
+                    double w = exp(-(tsl_dot(d, d) - along * along) * inv_s2);
+                    double off = tsl_height_offset(h, d);
+                    for (int a = 0; a < 3; a++)
+                        move[a] += w * off * h->normal[a];
+                    w_sum += w;
+                }
+                if (!(w_sum > 0.0))
+                    continue;
+                float moved[3];
+                for (int a = 0; a < 3; a++)
+                    moved[a] = (float)(q[a] + move[a] / w_sum);
+                memcpy(q, moved, sizeof moved);
+            }
         }
+        *fitted = 1;
     }
+done:
+    tessel_index_destroy(cx);
+    tessel_index_destroy(ix);
     free(work);
     free(dist);
     free(idx);
-    tessel_index_destroy(ix);
+    free(fit);
+    free(cxyz);
     free(xyz);
-    *fitted = st == TESSEL_OK;
     return st;
 }
 
@@ -205,10 +250,15 @@ static tessel_status measure_noise(const tessel_cloud *cloud, const tessel_smoot
     s->noise = e.sigma;
     s->noise_ratio = e.noise_ratio;
     if (e.noise_ratio > p->noise_ratio_max) {
-        /* Density scales with the kept fraction, the spacing with its root. */
-        double keep = p->noise_ratio_max / e.noise_ratio;
+        /* Density scales with the kept fraction, the spacing with its root.
+         * Points that will be fitted carry FIT_THIN times less noise than
+         * they were measured with. */
+        double target = p->noise_ratio_max;
+        if (FIT_SPAN * e.noise_ratio * e.noise_ratio >= FIT_MIN)
+            target = fmin(FIT_THIN * target, e.noise_ratio);
+        double keep = target / e.noise_ratio;
         if ((st = thin_cloud(cloud, keep * keep, thinned)) ||
-            (st = fit_thinned(cloud, e.noise_ratio, thinned,
+            (st = fit_thinned(cloud, e.sigma, e.noise_ratio, thinned,
                               p->threads ? p->threads : p->smooth.threads, &s->fitted)))
             return st;
         *use = thinned;
