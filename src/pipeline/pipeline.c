@@ -252,11 +252,13 @@ static tessel_status measure_noise(const tessel_cloud *cloud, const tessel_smoot
     s->noise_ratio = e.noise_ratio;
     if (e.noise_ratio > p->noise_ratio_max) {
         /* Density scales with the kept fraction, the spacing with its root.
-         * Points that will be fitted carry FIT_THIN times less noise than
-         * they were measured with. */
+         * Points that will be fitted may stay up to FIT_THIN times denser
+         * (finer detail where the noise is high), but at most 1 / FIT_THIN^2
+         * of them (the stages' time: where the noise is low, one spacing of
+         * it is detail enough). */
         double target = p->noise_ratio_max;
         if (FIT_SPAN * e.noise_ratio * e.noise_ratio >= FIT_MIN)
-            target = fmin(FIT_THIN * target, e.noise_ratio);
+            target = fmin(FIT_THIN * target, fmax(target, e.noise_ratio / FIT_THIN));
         double keep = target / e.noise_ratio;
         if ((st = thin_cloud(cloud, keep * keep, thinned)) ||
             (st = fit_thinned(cloud, e.sigma, e.noise_ratio, thinned,
