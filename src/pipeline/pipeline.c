@@ -130,6 +130,7 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
 #define FIT_MIN 32.0
 #define FIT_THIN 2.0
 #define BLEND 4
+#define FIT_MOVE_MAX 4.0
 
 /* The points of cloud whose index hashes at most limit (all for
  * UINT64_MAX), their coordinates into a new array of *m. */
@@ -156,6 +157,8 @@ static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double
                                  tessel_cloud *thinned, int threads, int *fitted)
 {
     double inv_s2 = 1.0 / (sigma * sigma);
+    if (!(inv_s2 < INFINITY))
+        return TESSEL_OK;
     *fitted = 0;
     double span = FIT_SPAN * ratio * ratio;
     if (span < FIT_MIN)
@@ -208,7 +211,11 @@ static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double
                         move[a] += w * off * h->normal[a];
                     w_sum += w;
                 }
-                if (!(w_sum > 0.0))
+                /* A point the quadrics would carry beyond FIT_MOVE_MAX sigmas
+                 * is not where they hold (an edge, a degenerate fit): it
+                 * stays. */
+                if (!(w_sum > 0.0) || tsl_dot(move, move) > FIT_MOVE_MAX * FIT_MOVE_MAX *
+                                                                 w_sum * w_sum * sigma * sigma)
                     continue;
                 float moved[3];
                 for (int a = 0; a < 3; a++)
