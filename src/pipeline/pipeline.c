@@ -78,16 +78,22 @@ static uint64_t mix64(uint64_t z)
     return z ^ (z >> 31);
 }
 
-/* The points of c whose index hashes below keep (a fraction), with their
+/* The hash of a point index at or below which a fraction of the points
+ * falls (all of them from 1 up). */
+static uint64_t hash_limit(double fraction)
+{
+    return fraction < 1.0 ? (uint64_t)(fraction * 0x1.0p64) : UINT64_MAX;
+}
+
+/* The points of c whose index hashes at most hash_limit(keep) (a fraction), with their
  * normals and colours, into *out (no organized grid: it would have holes
  * everywhere); the viewpoint and the offset stay. */
 static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud *out)
 {
-    bool all = keep >= 1.0;
-    uint64_t limit = all ? 0 : (uint64_t)(keep * 0x1.0p64);
+    uint64_t limit = hash_limit(keep);
     size_t n = 0;
     for (size_t i = 0; i < c->count; i++)
-        n += all || mix64(i) < limit;
+        n += mix64(i) <= limit;
     tessel_status st = tessel_cloud_alloc(out, n, c->normals != NULL, c->rgb != NULL);
     if (st)
         return st;
@@ -95,7 +101,7 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
     memcpy(out->viewpoint, c->viewpoint, sizeof out->viewpoint);
     out->has_viewpoint = c->has_viewpoint;
     for (size_t i = 0, j = 0; i < c->count; i++) {
-        if (!(all || mix64(i) < limit))
+        if (mix64(i) > limit)
             continue;
         memcpy(out->xyz + 3 * j, c->xyz + 3 * i, 3 * sizeof *out->xyz);
         if (c->normals)
@@ -130,7 +136,7 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
 #define FIT_MIN 32.0
 #define FIT_THIN 2.0
 #define BLEND 4
-#define FIT_MOVE_MAX 4.0
+#define FIT_MOVE_MAX 8.0
 
 /* The points of cloud whose index hashes at most limit (all for
  * UINT64_MAX), their coordinates into a new array of *m. */
@@ -148,20 +154,12 @@ static float *hash_subset(const tessel_cloud *cloud, uint64_t limit, size_t *m)
     return xyz;
 }
 
-static uint64_t hash_limit(double fraction)
-{
-    return fraction < 1.0 ? (uint64_t)(fraction * 0x1.0p64) : UINT64_MAX;
-}
-
 static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double ratio,
                                  tessel_cloud *thinned, int threads, int *fitted)
 {
-    double inv_s2 = 1.0 / (sigma * sigma);
-    if (!(inv_s2 < INFINITY))
-        return TESSEL_OK;
     *fitted = 0;
-    double span = FIT_SPAN * ratio * ratio;
-    if (span < FIT_MIN)
+    double inv_s2 = 1.0 / (sigma * sigma), span = FIT_SPAN * ratio * ratio;
+    if (!(inv_s2 < INFINITY) || span < FIT_MIN)
         return TESSEL_OK;
     size_t k_fit = span < FIT_POINTS ? (size_t)span : (size_t)FIT_POINTS, m = 0, nc = 0;
     int nt = tsl_threads(threads);
@@ -175,9 +173,7 @@ static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double
     tessel_status st = TESSEL_OK;
     if (!xyz || !cxyz || !fit || !idx || !dist || !work)
         st = TESSEL_ERR_NOMEM;
-    else if (m < k_fit || !nc)
-        goto done;
-    if (!st && !(st = tessel_index_build(&ix, xyz, m)) &&
+    if (!st && m >= k_fit && nc && !(st = tessel_index_build(&ix, xyz, m)) &&
         !(st = tessel_index_build(&cx, cxyz, nc))) {
 #pragma omp parallel num_threads(nt)
         {
@@ -225,7 +221,6 @@ static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double
         }
         *fitted = 1;
     }
-done:
     tessel_index_destroy(cx);
     tessel_index_destroy(ix);
     free(work);
