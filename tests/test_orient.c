@@ -1,7 +1,9 @@
 /* The orientation check by ray parity (src/mesh/orient.c) on a triangulated
  * sphere whose triangles' windings the test sets: it must find a region
  * turned inward, mark its rim, and leave alone what parity cannot judge
- * (a whole component, an open surface). */
+ * (a whole component, an open surface). And tiles oriented against each
+ * other across a cut (src/mesh/tile_orient.c) that a plane meets at a
+ * shallow angle. */
 #include "mesh/mesh.h"
 #include "test.h"
 
@@ -184,8 +186,64 @@ static void test_open_cap(void)
     CHECK_MSG(m.nt > 200 && flipped == 0, "open cap of %zu: %zu marked", m.nt, flipped);
 }
 
+/* A plane meeting the cut x = 0 at 20 degrees, meshed on each side beyond
+ * a band of 3 (a grid of unit spacing), the far side's triangles turned:
+ * the gap is 3 / sin(20 deg) = 8.8 wide along the plane on each side,
+ * beyond the pair radius of 2 bands and 4 spacings, so the search must
+ * widen with the angle for the two sides to meet and agree. */
+#define GRID_U 61
+#define GRID_V 21
+static void test_tiles_shallow_cut(void)
+{
+    static float xyz[3 * GRID_U * GRID_V], dcut[GRID_U * GRID_V];
+    static uint8_t axis[GRID_U * GRID_V];
+    static uint32_t tri[6 * GRID_U * GRID_V], comp[2 * GRID_U * GRID_V];
+    const double theta = 20.0 * PI / 180.0, band = 3.0, gap = band / sin(theta);
+    for (int i = 0; i < GRID_U; i++)
+        for (int j = 0; j < GRID_V; j++) {
+            size_t v = (size_t)i * GRID_V + (size_t)j;
+            double u = i - GRID_U / 2;
+            xyz[3 * v] = (float)(-u * sin(theta));
+            xyz[3 * v + 1] = (float)j;
+            xyz[3 * v + 2] = (float)(u * cos(theta));
+            dcut[v] = fabsf(xyz[3 * v]);
+            axis[v] = 0;
+        }
+    size_t nt = 0;
+    for (int i = 0; i + 1 < GRID_U; i++) {
+        double u0 = i - GRID_U / 2, u1 = u0 + 1.0;
+        int side = u1 <= -gap ? 0 : u0 >= gap ? 1 : -1;
+        for (int j = 0; side >= 0 && j + 1 < GRID_V; j++) {
+            uint32_t a = (uint32_t)(i * GRID_V + j), b = a + GRID_V, c = b + 1, d = a + 1;
+            uint32_t q[2][3] = {{a, b, c}, {a, c, d}};
+            for (int k = 0; k < 2; k++, nt++) {
+                tri[3 * nt] = q[k][0];
+                tri[3 * nt + 1] = side ? q[k][2] : q[k][1];
+                tri[3 * nt + 2] = side ? q[k][1] : q[k][2];
+                comp[nt] = (uint32_t)side;
+            }
+        }
+    }
+    uint8_t drop[2];
+    CHECK(tsl_orient_tiles(tri, comp, nt, 2, xyz, dcut, axis, band + 4.0, 2.0 * band + 4.0, 2.0,
+                           0, drop) == TESSEL_OK);
+    /* Every triangle's normal along the first one's. */
+    double n0[3], n[3], p[3][3];
+    size_t against = 0;
+    for (size_t t = 0; t < nt; t++) {
+        for (int k = 0; k < 3; k++)
+            for (int c = 0; c < 3; c++)
+                p[k][c] = xyz[3 * (size_t)tri[3 * t + (size_t)k] + (size_t)c];
+        tsl_tri_normal(p[0], p[1], p[2], t ? n : n0);
+        against += t && n[0] * n0[0] + n[1] * n0[1] + n[2] * n0[2] < 0.0;
+    }
+    CHECK_MSG(against == 0 && !drop[0] && !drop[1],
+              "shallow cut: %zu of %zu triangles against the first", against, nt);
+}
+
 int main(void)
 {
+    test_tiles_shallow_cut();
     test_outward();
     test_inward_cap();
     test_whole_inward();

@@ -236,6 +236,7 @@ typedef struct tsl_tiles {
     uint32_t *tile_of; /* per point: its tile */
     float *dcut;       /* per point: distance to the nearest cut bounding its
                           tile (INFINITY with one tile) */
+    uint8_t *cut_axis; /* per point: the axis that cut runs across */
 } tsl_tiles;
 
 tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_tiles *t);

@@ -66,14 +66,13 @@ static void select_key(tile_key *a, size_t n, size_t k)
 
 /* Cuts ids[lo .. hi) into tiles of at most max_points points (their ranges
  * appended to start[]); dcut[i] becomes the distance of point i to the
- * nearest cut bounding its tile. */
+ * nearest cut bounding its tile, cut_axis[i] that cut's axis. */
 static void bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, size_t hi,
-                   size_t max_points, float *dcut, size_t *start, size_t *count)
+                   size_t max_points, tsl_tiles *t)
 {
     size_t m = hi - lo;
     if (m <= max_points) {
-        start[*count] = lo;
-        (*count)++;
+        t->start[t->count++] = lo;
         return;
     }
     float bl[3] = {INFINITY, INFINITY, INFINITY}, bh[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -100,11 +99,13 @@ static void bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, s
     for (size_t u = 0; u < m; u++) {
         ids[lo + u] = keys[u].id;
         float d = (float)fabs((double)keys[u].c - cut);
-        if (d < dcut[keys[u].id])
-            dcut[keys[u].id] = d;
+        if (d < t->dcut[keys[u].id]) {
+            t->dcut[keys[u].id] = d;
+            t->cut_axis[keys[u].id] = (uint8_t)axis;
+        }
     }
-    bisect(xyz, ids, keys, lo, lo + half, max_points, dcut, start, count);
-    bisect(xyz, ids, keys, lo + half, hi, max_points, dcut, start, count);
+    bisect(xyz, ids, keys, lo, lo + half, max_points, t);
+    bisect(xyz, ids, keys, lo + half, hi, max_points, t);
 }
 
 void tsl_tiles_free(tsl_tiles *t)
@@ -113,6 +114,7 @@ void tsl_tiles_free(tsl_tiles *t)
     free(t->ids);
     free(t->tile_of);
     free(t->dcut);
+    free(t->cut_axis);
     memset(t, 0, sizeof *t);
 }
 
@@ -126,9 +128,10 @@ tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_t
     t->ids = tsl_alloc_array(n + 1, sizeof *t->ids);
     t->tile_of = tsl_alloc_array(n + 1, sizeof *t->tile_of);
     t->dcut = tsl_alloc_array(n + 1, sizeof *t->dcut);
+    t->cut_axis = tsl_calloc_array(n + 1, 1);
     tile_key *keys = tsl_alloc_array(n + 1, sizeof *keys);
     size_t *fill = NULL;
-    if (!t->start || !t->ids || !t->tile_of || !t->dcut || !keys) {
+    if (!t->start || !t->ids || !t->tile_of || !t->dcut || !t->cut_axis || !keys) {
         free(keys);
         tsl_tiles_free(t);
         return TESSEL_ERR_NOMEM;
@@ -137,7 +140,7 @@ tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_t
         t->ids[i] = (uint32_t)i;
         t->dcut[i] = INFINITY;
     }
-    bisect(xyz, t->ids, keys, 0, n, max_points, t->dcut, t->start, &t->count);
+    bisect(xyz, t->ids, keys, 0, n, max_points, t);
     free(keys);
     t->start[t->count] = n;
     for (size_t k = 0; k < t->count; k++)

@@ -148,11 +148,12 @@ static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, g
     size_t count = all->count, ncomp = 0, band_tris = s->nt;
     uint32_t *comp = tsl_alloc_array(count + 1, sizeof *comp);
     float *dcut = tsl_alloc_array(c->count + 1, sizeof *dcut);
+    uint8_t *axis = tsl_alloc_array(c->count + 1, 1);
     uint8_t *drop = NULL;
     uint32_t *saved = tsl_alloc_array(3 * band_tris + 1, sizeof *saved);
-    tessel_status st = comp && dcut && saved ? tsl_triangle_components(all->tris, count, c->count,
-                                                                       comp, &ncomp)
-                                             : TESSEL_ERR_NOMEM;
+    tessel_status st = comp && dcut && axis && saved
+                           ? tsl_triangle_components(all->tris, count, c->count, comp, &ncomp)
+                           : TESSEL_ERR_NOMEM;
     if (st)
         goto done;
     if (!(drop = tsl_alloc_array(ncomp + 1, sizeof *drop))) {
@@ -161,8 +162,9 @@ static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, g
     }
     for (size_t i = 0; i < c->count; i++)
         dcut[i] = (float)fabs((double)c->xyz[3 * i + (size_t)s->axis] - s->cut);
+    memset(axis, s->axis, c->count);
     memcpy(saved, all->tris, 3 * band_tris * sizeof *saved);
-    st = tsl_orient_tiles(all->tris, comp, count, ncomp, c->xyz, dcut,
+    st = tsl_orient_tiles(all->tris, comp, count, ncomp, c->xyz, dcut, axis,
                           reach + SWEEP_VOTE_REACH * spacing,
                           2.0 * reach + SWEEP_PAIR_REACH * spacing, 2.0 * spacing, small, drop);
     if (st)
@@ -187,6 +189,7 @@ static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, g
 done:
     free(comp);
     free(dcut);
+    free(axis);
     free(drop);
     free(saved);
     return st;

@@ -70,7 +70,7 @@ static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, 
  * with the front's reaches, in mean spacings beyond the band. Components it
  * leaves out (contradicted by their neighbours, small pieces at a cut) are
  * dropped; the front that closes the seams meshes their points again. */
-static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, const float *dcut,
+static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, const tsl_tiles *cut,
                                   double band, double spacing, size_t tile_points)
 {
     size_t count = all->count, ncomp = 0;
@@ -84,7 +84,7 @@ static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, co
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
-    st = tsl_orient_tiles(all->tris, comp, count, ncomp, cloud->xyz, dcut,
+    st = tsl_orient_tiles(all->tris, comp, count, ncomp, cloud->xyz, cut->dcut, cut->cut_axis,
                           band + TILE_VOTE_REACH * spacing,
                           2.0 * band + TILE_PAIR_REACH * spacing, 2.0 * spacing,
                           tile_points / 4, drop);
@@ -242,7 +242,7 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         }
     }
     if (st || (st = tsl_single_fans(cloud->count, all->tris, &all->count, touched)) ||
-        (st = orient_tiles(cloud, all, cut.dcut, reach, spacing, params->tile_points)))
+        (st = orient_tiles(cloud, all, &cut, reach, spacing, params->tile_points)))
         goto done;
     /* The seams: one front over all points from those triangles. */
     tessel_greedy_params sp = *params;

@@ -9,6 +9,10 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The sine of the shallowest angle between surface and cut that widens a
+ * triangle's search (tsl_orient_tiles). */
+#define SHALLOW_SIN 0.25
+
 static double dmin(double a, double b) { return a < b ? a : b; }
 static double dmax(double a, double b) { return a > b ? a : b; }
 
@@ -78,8 +82,9 @@ static void spanning_parity(const tile_pair *pairs, size_t np, size_t ncomp, con
 }
 
 tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count,
-                                  size_t ncomp, const float *xyz, const float *dcut, double near,
-                                  double radius, double cell, size_t small, uint8_t *drop)
+                                  size_t ncomp, const float *xyz, const float *dcut,
+                                  const uint8_t *cut_axis, double near, double radius, double cell,
+                                  size_t small, uint8_t *drop)
 {
     size_t nl = 0;
     for (size_t t = 0; t < count; t++) {
@@ -87,7 +92,7 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
         nl += dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near;
     }
     uint32_t *list = tsl_alloc_array(nl + 1, sizeof *list);
-    double *geo = tsl_alloc_array(6 * nl + 1, sizeof *geo); /* centroid, normal */
+    double *geo = tsl_alloc_array(7 * nl + 1, sizeof *geo); /* centroid, normal, radius */
     tile_pair *pairs = tsl_alloc_array(nl + 1, sizeof *pairs);
     uint32_t *up = tsl_alloc_array(ncomp + 1, sizeof *up);
     uint8_t *rel = tsl_calloc_array(ncomp + 1, sizeof *rel);
@@ -106,10 +111,16 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
         const uint32_t *v = tri + 3 * t;
         if (!(dcut[v[0]] < near || dcut[v[1]] < near || dcut[v[2]] < near))
             continue;
-        double p[3][3], *g = geo + 6 * nl;
+        double p[3][3], *g = geo + 7 * nl;
         for (int i = 0; i < 3; i++)
             tsl_load(xyz + 3 * (size_t)v[i], p[i]);
         tsl_tri_normal(p[0], p[1], p[2], g + 3);
+        uint32_t nearest = v[0];
+        for (int i = 1; i < 3; i++)
+            if (dcut[v[i]] < dcut[nearest])
+                nearest = v[i];
+        double along = g[3 + cut_axis[nearest]];
+        g[6] = radius / dmax(sqrt(dmax(0.0, 1.0 - along * along)), SHALLOW_SIN);
         for (int c = 0; c < 3; c++) {
             g[c] = (p[0][c] + p[1][c] + p[2][c]) / 3.0;
             lo[c] = dmin(lo[c], g[c]);
@@ -120,26 +131,26 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
     if ((st = tsl_trigrid_init(&grid, lo, hi, cell)))
         goto done;
     for (size_t i = 0; i < nl; i++)
-        if ((st = tsl_trigrid_insert(&grid, (uint32_t)i, geo + 6 * i, geo + 6 * i)))
+        if ((st = tsl_trigrid_insert(&grid, (uint32_t)i, geo + 7 * i, geo + 7 * i)))
             goto done;
     size_t np = 0;
     for (size_t i = 0; i < nl; i++) {
-        const double *g = geo + 6 * i;
+        const double *g = geo + 7 * i;
         double blo[3], bhi[3];
         for (int c = 0; c < 3; c++) {
-            blo[c] = g[c] - radius;
-            bhi[c] = g[c] + radius;
+            blo[c] = g[c] - g[6];
+            bhi[c] = g[c] + g[6];
         }
         if ((st = tsl_trigrid_query(&grid, blo, bhi)))
             goto done;
-        double best = radius * radius;
+        double best = g[6] * g[6];
         uint32_t best_j = TESSEL_NONE;
         for (size_t f = 0; f < grid.hits.count; f++) {
             uint32_t j = grid.hits.found[f];
             if (comp[list[j]] == comp[list[i]])
                 continue;
             double d[3], h;
-            tsl_sub(geo + 6 * (size_t)j, g, d);
+            tsl_sub(geo + 7 * (size_t)j, g, d);
             double d2 = tsl_dot(d, d);
             /* Only along the surface: the other side of a thin part lies
              * off the tangent plane and faces the other way. */
@@ -156,7 +167,7 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
         uint32_t ca = comp[list[i]], cb = comp[list[best_j]];
         pairs[np].a = ca < cb ? ca : cb;
         pairs[np].b = ca < cb ? cb : ca;
-        pairs[np].w = tsl_dot(g + 3, geo + 6 * (size_t)best_j + 3);
+        pairs[np].w = tsl_dot(g + 3, geo + 7 * (size_t)best_j + 3);
         np++;
     }
     qsort(pairs, np, sizeof *pairs, cmp_pair_ids);
