@@ -984,16 +984,20 @@ static tessel_status try_ear(gp *g, uint32_t v, uint32_t u, uint32_t w, int *ok)
 /* Ear clipping of the loop L[0..k) (each entry's successor is the next):
  * the ear at L[i] is the triangle (L[i], L[i-1], L[i+1]); it must turn the
  * same way as L[i]'s fan (a convex corner; the last triangle has no choice)
- * and its new edge must not exceed lim. The smallest angle goes first.
+ * and its new edge must not exceed lim. The smallest angle goes first; one
+ * the exact checks refuse gives way to the next.
  * dry: only these tests, on a copy, to learn whether the whole loop can be
  * closed. */
 static tessel_status clip_loop(gp *g, uint32_t *L, size_t k, double lim, int dry, int *done)
 {
     *done = 0;
+    uint64_t refused = 0; /* ears at this k that try_ear refused (the first 64) */
     while (k >= 3) {
         size_t best = k;
         double best_cos = -2.0;
         for (size_t i = 0; i < k; i++) {
+            if (i < 64 && (refused >> i & 1))
+                continue;
             uint32_t u = L[(i + k - 1) % k], v = L[i], w = L[(i + 1) % k];
             double pv[3], pu[3], pw[3], a[3], b[3], uw[3], en[3];
             pos(g, v, pv);
@@ -1021,9 +1025,14 @@ static tessel_status clip_loop(gp *g, uint32_t *L, size_t k, double lim, int dry
                 try_ear(g, L[best], L[(best + k - 1) % k], L[(best + 1) % k], &ok);
             if (s != TESSEL_OK)
                 return s;
-            if (!ok)
-                return TESSEL_OK;
+            if (!ok) { /* another ear may pass: the other diagonal of a quad */
+                if (best >= 64)
+                    return TESSEL_OK;
+                refused |= (uint64_t)1 << best;
+                continue;
+            }
         }
+        refused = 0;
         if (k == 3)
             break;
         memmove(L + best, L + best + 1, (k - best - 1) * sizeof *L);
