@@ -46,6 +46,28 @@ static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary 
     out->holes_closed += first->holes_closed;
     out->rejected_intersecting += first->rejected_intersecting;
     out->flips += first->flips;
+    out->reoriented = first->reoriented;
+}
+
+/* The front once more over every point from the triangles in all (as
+ * params.existing), its new triangles added to all. */
+static tessel_status front_again(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                 const char *stage, const tessel_callbacks *callbacks,
+                                 gp_collect *all, tessel_recon_summary *summary)
+{
+    gp_collect more = {NULL, 0, 0};
+    tessel_greedy_params again = *params;
+    again.existing = all->tris;
+    again.existing_count = all->count;
+    tessel_recon_summary first = *summary;
+    tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
+    tessel_status s = tsl_gp_pass(cloud, &again, stage, callbacks, &hold, summary);
+    if (s == TESSEL_OK) {
+        merge_summary(summary, &first, all->count);
+        s = tsl_gp_collect_emit(all, more.tris, more.count);
+    }
+    free(more.tris);
+    return s;
 }
 
 /* Step 1: the orientation check (by ray parity, or by the points' normals
@@ -56,7 +78,6 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
                                       const tessel_callbacks *callbacks, gp_collect *all,
                                       tessel_recon_summary *summary)
 {
-    gp_collect more = {NULL, 0, 0};
     uint8_t *mark = tsl_alloc_array(all->count + 1, sizeof *mark);
     size_t flipped = 0;
     tessel_status s = mark ? tsl_progress(callbacks, "orientation check", 0.0)
@@ -85,22 +106,164 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
         s = touched ? tsl_single_fans(cloud->count, all->tris, &all->count, touched)
                     : TESSEL_ERR_NOMEM;
         free(touched);
-        tessel_greedy_params again = *params;
-        again.existing = all->tris;
-        again.existing_count = all->count;
-        tessel_recon_summary first = *summary;
-        tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
         if (s == TESSEL_OK)
-            s = tsl_gp_pass(cloud, &again, "greedy: orientation repair", callbacks, &hold,
-                            summary);
-        if (s == TESSEL_OK) {
-            merge_summary(summary, &first, all->count);
-            summary->reoriented = flipped;
-            s = tsl_gp_collect_emit(all, more.tris, more.count);
-        }
+            s = front_again(cloud, params, "greedy: orientation repair", callbacks, all, summary);
+        summary->reoriented = flipped;
     }
     free(mark);
-    free(more.tris);
+    return s;
+}
+
+static uint64_t mix(uint64_t x)
+{
+    x += 0x9e3779b97f4a7c15u;
+    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9u;
+    x = (x ^ (x >> 27)) * 0x94d049bb133111ebu;
+    return x ^ (x >> 31);
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* Flags in hole[] the vertices of the boundary loops of at most max_hole
+ * edges; returns how many loops, or -1 without memory. A vertex is on the
+ * boundary when the hashes of its fan's outgoing and incoming neighbours
+ * differ (a closed fan has the same neighbours both ways); only the
+ * half-edges between such vertices are then matched, by sorting. */
+static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_hole,
+                        uint8_t *hole)
+{
+    uint64_t *sum = tsl_calloc_array(n + 1, sizeof *sum);
+    uint32_t *next = NULL;
+    uint64_t *half = NULL;
+    long loops = -1;
+    if (!sum)
+        return -1;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
+            sum[a] += mix(b);
+            sum[b] -= mix(a);
+        }
+    size_t nh = 0;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++)
+            nh += sum[tri[3 * t + (size_t)k]] && sum[tri[3 * t + (size_t)(k + 1) % 3]];
+    half = tsl_alloc_array(nh + 1, sizeof *half);
+    next = tsl_alloc_array(n + 1, sizeof *next);
+    if (!half || !next)
+        goto done;
+    nh = 0;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            uint64_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
+            if (sum[a] && sum[b]) /* the edge's key, its direction in the low bit */
+                half[nh++] = a < b ? (a << 33 | b << 1) : (b << 33 | a << 1 | 1);
+        }
+    qsort(half, nh, sizeof *half, cmp_u64);
+    memset(next, 0xff, (n + 1) * sizeof *next);
+    for (size_t i = 0; i < nh;) {
+        size_t j = i;
+        while (j < nh && half[j] >> 1 == half[i] >> 1)
+            j++;
+        if (j - i == 1) {
+            uint32_t lo = (uint32_t)(half[i] >> 33), hi = (uint32_t)(half[i] >> 1) & 0xffffffffu;
+            uint32_t a = half[i] & 1 ? hi : lo, b = half[i] & 1 ? lo : hi;
+            next[a] = next[a] == NONE ? b : n; /* n: two open edges leave a (a pinch) */
+        }
+        i = j;
+    }
+    loops = 0;
+    for (uint32_t v = 0; v < n; v++) {
+        uint32_t k = 0, x = v, low = v;
+        while (k <= max_hole && next[x] < n && (k == 0 || x != v)) {
+            low = x < low ? x : low;
+            x = next[x];
+            k++;
+        }
+        if (x != v || k < 3 || k > max_hole || low != v)
+            continue;
+        loops++;
+        do {
+            hole[x] = 1;
+            x = next[x];
+        } while (x != v);
+    }
+done:
+    free(sum);
+    free(half);
+    free(next);
+    return loops;
+}
+
+/* Edge-connected components of the triangles tri[0 .. nt) over the
+ * cloud's points (tessel_mesh_check), or -1 without memory. */
+static long pieces(const tessel_cloud *cloud, uint32_t *tri, size_t nt, int threads)
+{
+    tessel_mesh m;
+    memset(&m, 0, sizeof m);
+    m.xyz = cloud->xyz;
+    m.vertex_count = cloud->count;
+    m.triangles = tri;
+    m.triangle_count = nt;
+    tessel_check_params cp = tessel_check_params_default();
+    cp.self_intersections = 0;
+    cp.threads = threads;
+    tessel_mesh_report r;
+    return tessel_mesh_check(&m, &cp, &r) == TESSEL_OK ? (long)r.components : -1;
+}
+
+/* Step 1b: small holes the front could not close (its ear clipping finds
+ * every ear refused, mostly where the triangles beside the hole fold over
+ * each other): the triangles at their vertices are dropped and the front
+ * runs again from the rest, once. Where two sheets pass closer than the
+ * sampling (two spheres touching), that front can join them through a
+ * hole: a repair that leaves fewer components is undone. */
+static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                  const tessel_callbacks *callbacks, gp_collect *all,
+                                  tessel_recon_summary *summary)
+{
+    if (params->max_hole < 3)
+        return TESSEL_OK;
+    size_t n = cloud->count, before_count = all->count;
+    uint8_t *hole = tsl_calloc_array(n + 1, 1), *touched = tsl_calloc_array(n + 1, 1);
+    long loops = hole && touched ? small_loops(all->tris, all->count, n, params->max_hole, hole)
+                                 : -1;
+    long had = loops > 0 ? pieces(cloud, all->tris, all->count, params->threads) : 0;
+    uint32_t *saved = loops > 0 ? tsl_alloc_array(3 * before_count, sizeof *saved) : NULL;
+    tessel_status s = loops < 0 || had < 0 || (loops > 0 && !saved) ? TESSEL_ERR_NOMEM
+                                                                     : TESSEL_OK;
+    if (loops > 0 && s == TESSEL_OK) {
+        memcpy(saved, all->tris, 3 * before_count * sizeof *saved);
+        tessel_recon_summary before = *summary;
+        size_t w = 0;
+        for (size_t t = 0; t < all->count; t++) {
+            uint32_t *v = all->tris + 3 * t;
+            if (hole[v[0]] || hole[v[1]] || hole[v[2]]) {
+                touched[v[0]] = touched[v[1]] = touched[v[2]] = 1;
+                continue;
+            }
+            memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
+        }
+        all->count = w;
+        s = tsl_single_fans(n, all->tris, &all->count, touched);
+        if (s == TESSEL_OK)
+            s = front_again(cloud, params, "greedy: hole repair", callbacks, all, summary);
+        long now = s == TESSEL_OK ? pieces(cloud, all->tris, all->count, params->threads) : 0;
+        if (now < 0)
+            s = TESSEL_ERR_NOMEM;
+        if (s == TESSEL_OK && now < had) {
+            memcpy(all->tris, saved, 3 * before_count * sizeof *saved);
+            all->count = before_count;
+            *summary = before;
+        }
+    }
+    free(hole);
+    free(touched);
+    free(saved);
     return s;
 }
 
@@ -117,6 +280,8 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
                           : tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, summary);
     if (s == TESSEL_OK && check)
         s = check_and_repair(cloud, params, callbacks, &all, summary);
+    if (s == TESSEL_OK)
+        s = reopen_holes(cloud, params, callbacks, &all, summary);
     if (s == TESSEL_OK && params->flip) {
         /* Added to the tiles' flips, when there were tiles. */
         size_t flips = 0;
