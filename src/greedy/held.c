@@ -128,17 +128,31 @@ static int cmp_u64(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Flags in hole[] the vertices of the boundary loops of at most max_hole
- * edges; returns how many loops, or -1 without memory. A vertex is on the
- * boundary when the hashes of its fan's outgoing and incoming neighbours
- * differ (a closed fan has the same neighbours both ways); only the
- * half-edges between such vertices are then matched, by sorting. */
-static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_hole,
-                        uint8_t *hole)
+/* A cell of the grid of side `side` (coordinates offset to stay
+ * positive), packed in 63 bits. */
+static uint64_t cell_key(const float *p, double side, int dx, int dy, int dz)
 {
-    uint64_t *sum = tsl_calloc_array(n + 1, sizeof *sum);
-    uint32_t *next = NULL;
-    uint64_t *half = NULL;
+    int64_t c[3] = {(int64_t)floor(p[0] / side) + dx, (int64_t)floor(p[1] / side) + dy,
+                    (int64_t)floor(p[2] / side) + dz};
+    uint64_t key = 0;
+    for (int k = 0; k < 3; k++)
+        key = key << 21 | ((uint64_t)(c[k] + (1 << 20)) & 0x1fffff);
+    return key;
+}
+
+/* The boundary loops of at most max_hole edges with no other border
+ * within reach: their vertices flagged in hole[]; returns how many loops,
+ * or -1 without memory. A vertex is on the boundary when the hashes of
+ * its fan's outgoing and incoming neighbours differ (a closed fan has the
+ * same neighbours both ways); only the half-edges between such vertices
+ * are then matched, by sorting. A small loop near another border (two
+ * sheets passing closer than the sampling: two spheres touching) is left
+ * alone: the front run again would join them there. */
+static long small_loops(const float *xyz, const uint32_t *tri, size_t nt, size_t n,
+                        uint32_t max_hole, double reach, uint8_t *hole)
+{
+    uint64_t *sum = tsl_calloc_array(n + 1, sizeof *sum), *half = NULL, *cells = NULL;
+    uint32_t *next = NULL, *loop = NULL;
     long loops = -1;
     if (!sum)
         return -1;
@@ -154,7 +168,9 @@ static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_h
             nh += sum[tri[3 * t + (size_t)k]] && sum[tri[3 * t + (size_t)(k + 1) % 3]];
     half = tsl_alloc_array(nh + 1, sizeof *half);
     next = tsl_alloc_array(n + 1, sizeof *next);
-    if (!half || !next)
+    loop = tsl_alloc_array(n + 1, sizeof *loop);
+    cells = tsl_alloc_array(nh + 1, sizeof *cells);
+    if (!half || !next || !loop || !cells)
         goto done;
     nh = 0;
     for (size_t t = 0; t < nt; t++)
@@ -165,6 +181,8 @@ static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_h
         }
     qsort(half, nh, sizeof *half, cmp_u64);
     memset(next, 0xff, (n + 1) * sizeof *next);
+    memset(loop, 0xff, (n + 1) * sizeof *loop);
+    size_t nb = 0; /* boundary vertices, by cell (key << 32 | vertex) */
     for (size_t i = 0; i < nh;) {
         size_t j = i;
         while (j < nh && half[j] >> 1 == half[i] >> 1)
@@ -172,19 +190,59 @@ static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_h
         if (j - i == 1) {
             uint32_t lo = (uint32_t)(half[i] >> 33), hi = (uint32_t)(half[i] >> 1) & 0xffffffffu;
             uint32_t a = half[i] & 1 ? hi : lo, b = half[i] & 1 ? lo : hi;
-            next[a] = next[a] == NONE ? b : n; /* n: two open edges leave a (a pinch) */
+            if (next[a] == NONE)
+                cells[nb++] = cell_key(xyz + 3 * (size_t)a, reach, 0, 0, 0) << 32 | a;
+            next[a] = next[a] == NONE ? b : (uint32_t)n; /* n: two open edges (a pinch) */
         }
         i = j;
     }
-    loops = 0;
-    for (uint32_t v = 0; v < n; v++) {
-        uint32_t k = 0, x = v, low = v;
-        while (k <= max_hole && next[x] < n && (k == 0 || x != v)) {
+    qsort(cells, nb, sizeof *cells, cmp_u64);
+    /* Each loop numbered by its least vertex (pinches and open paths: n). */
+    for (size_t i = 0; i < nb; i++) {
+        uint32_t v = (uint32_t)cells[i], k = 0, x = v, low = v;
+        if (loop[v] != NONE)
+            continue;
+        do {
             low = x < low ? x : low;
             x = next[x];
             k++;
-        }
-        if (x != v || k < 3 || k > max_hole || low != v)
+        } while (x < n && x != v && k <= n);
+        uint32_t id = x == v ? low : (uint32_t)n;
+        for (x = v; x < n && loop[x] == NONE; x = next[x])
+            loop[x] = id;
+    }
+    loops = 0;
+    for (uint32_t v = 0; v < n; v++) {
+        if (loop[v] != v)
+            continue;
+        uint32_t k = 0, x = v;
+        bool alone = true;
+        do {
+            for (int c = 0; c < 27 && alone; c++) {
+                uint64_t key = cell_key(xyz + 3 * (size_t)x, reach, c % 3 - 1, c / 3 % 3 - 1,
+                                        c / 9 - 1);
+                size_t lo = 0, hi = nb;
+                while (lo < hi) { /* the cell's first entry */
+                    size_t mid = (lo + hi) / 2;
+                    if (cells[mid] >> 32 < key)
+                        lo = mid + 1;
+                    else
+                        hi = mid;
+                }
+                for (; lo < nb && cells[lo] >> 32 == key && alone; lo++) {
+                    uint32_t u = (uint32_t)cells[lo];
+                    double d2 = 0.0;
+                    for (int a = 0; a < 3; a++) {
+                        double d = (double)xyz[3 * (size_t)u + a] - xyz[3 * (size_t)x + a];
+                        d2 += d * d;
+                    }
+                    alone = loop[u] == v || d2 > reach * reach;
+                }
+            }
+            x = next[x];
+            k++;
+        } while (x != v && alone);
+        if (!alone || k < 3 || k > max_hole)
             continue;
         loops++;
         do {
@@ -196,43 +254,78 @@ done:
     free(sum);
     free(half);
     free(next);
+    free(loop);
+    free(cells);
     return loops;
 }
 
-/* Edge-connected components of the triangles tri[0 .. nt) over the
- * cloud's points (tessel_mesh_check), or -1 without memory. */
-static long pieces(const tessel_cloud *cloud, uint32_t *tri, size_t nt, int threads)
+static uint32_t uf_find(uint32_t *up, uint32_t x)
 {
-    tessel_mesh m;
-    memset(&m, 0, sizeof m);
-    m.xyz = cloud->xyz;
-    m.vertex_count = cloud->count;
-    m.triangles = tri;
-    m.triangle_count = nt;
-    tessel_check_params cp = tessel_check_params_default();
-    cp.self_intersections = 0;
-    cp.threads = threads;
-    tessel_mesh_report r;
-    return tessel_mesh_check(&m, &cp, &r) == TESSEL_OK ? (long)r.components : -1;
+    while (up[x] != x)
+        x = up[x] = up[up[x]];
+    return x;
+}
+
+/* The number of edge-connected components of tri[0 .. nt) over n
+ * vertices (two fans at one vertex do not join), or -1 without memory:
+ * triangles at a vertex that share a second vertex share an edge. */
+static long edge_components(const uint32_t *tri, size_t nt, size_t n)
+{
+    size_t *start = tsl_calloc_array(n + 2, sizeof *start);
+    uint32_t *inc = tsl_alloc_array(3 * nt + 1, sizeof *inc);
+    uint32_t *up = tsl_alloc_array(nt + 1, sizeof *up);
+    long count = -1;
+    if (!start || !inc || !up)
+        goto done;
+    for (size_t i = 0; i < 3 * nt; i++)
+        start[tri[i] + 2]++;
+    for (size_t v = 0; v < n; v++)
+        start[v + 2] += start[v + 1];
+    for (size_t t = 0; t < nt; t++) {
+        up[t] = (uint32_t)t;
+        for (int k = 0; k < 3; k++)
+            inc[start[tri[3 * t + (size_t)k] + 1]++] = (uint32_t)t;
+    }
+    for (size_t v = 0; v < n; v++)
+        for (size_t i = start[v]; i < start[v + 1]; i++)
+            for (size_t j = i + 1; j < start[v + 1]; j++) {
+                const uint32_t *a = tri + 3 * (size_t)inc[i], *b = tri + 3 * (size_t)inc[j];
+                int shared = 0;
+                for (int x = 0; x < 3; x++)
+                    shared += a[x] == b[0] || a[x] == b[1] || a[x] == b[2];
+                if (shared >= 2)
+                    up[uf_find(up, inc[i])] = uf_find(up, inc[j]);
+            }
+    count = 0;
+    for (size_t t = 0; t < nt; t++)
+        count += uf_find(up, (uint32_t)t) == t;
+done:
+    free(start);
+    free(inc);
+    free(up);
+    return count;
 }
 
 /* Step 1b: small holes the front could not close (its ear clipping finds
  * every ear refused, mostly where the triangles beside the hole fold over
  * each other): the triangles at their vertices are dropped and the front
- * runs again from the rest, once. Where two sheets pass closer than the
- * sampling (two spheres touching), that front can join them through a
- * hole: a repair that leaves fewer components is undone. */
+ * runs again from the rest, once. */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
                                   tessel_recon_summary *summary)
 {
-    if (params->max_hole < 3)
+    /* The longest edge the front makes (2 mu spacings, about), from the
+     * farthest point it meshes again (a spacing or two beyond the loop). */
+    double reach = (2.0 * summary->mu + 2.0) * summary->spacing;
+    if (params->max_hole < 3 || !(reach > 0.0))
         return TESSEL_OK;
-    size_t n = cloud->count, before_count = all->count;
+    size_t n = cloud->count;
     uint8_t *hole = tsl_calloc_array(n + 1, 1), *touched = tsl_calloc_array(n + 1, 1);
-    long loops = hole && touched ? small_loops(all->tris, all->count, n, params->max_hole, hole)
+    long loops = hole && touched ? small_loops(cloud->xyz, all->tris, all->count, n,
+                                               params->max_hole, reach, hole)
                                  : -1;
-    long had = loops > 0 ? pieces(cloud, all->tris, all->count, params->threads) : 0;
+    size_t before_count = all->count;
+    long had = loops > 0 ? edge_components(all->tris, before_count, n) : 0;
     uint32_t *saved = loops > 0 ? tsl_alloc_array(3 * before_count, sizeof *saved) : NULL;
     tessel_status s = loops < 0 || had < 0 || (loops > 0 && !saved) ? TESSEL_ERR_NOMEM
                                                                      : TESSEL_OK;
@@ -252,10 +345,10 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
         s = tsl_single_fans(n, all->tris, &all->count, touched);
         if (s == TESSEL_OK)
             s = front_again(cloud, params, "greedy: hole repair", callbacks, all, summary);
-        long now = s == TESSEL_OK ? pieces(cloud, all->tris, all->count, params->threads) : 0;
+        long now = s == TESSEL_OK ? edge_components(all->tris, all->count, n) : 0;
         if (now < 0)
             s = TESSEL_ERR_NOMEM;
-        if (s == TESSEL_OK && now < had) {
+        if (s == TESSEL_OK && now < had) { /* it joined two sheets: undone */
             memcpy(all->tris, saved, 3 * before_count * sizeof *saved);
             all->count = before_count;
             *summary = before;
