@@ -128,31 +128,16 @@ static int cmp_u64(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* A cell of the grid of side `side` (coordinates offset to stay
- * positive), packed in 63 bits. */
-static uint64_t cell_key(const float *p, double side, int dx, int dy, int dz)
+/* Flags in hole[] the vertices of the boundary loops of at most max_hole
+ * edges; returns how many loops, or -1 without memory. A vertex is on the
+ * boundary when the hashes of its fan's outgoing and incoming neighbours
+ * differ (a closed fan has the same neighbours both ways); only the
+ * half-edges between such vertices are then matched, by sorting. */
+static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_hole,
+                        uint8_t *hole)
 {
-    int64_t c[3] = {(int64_t)floor(p[0] / side) + dx, (int64_t)floor(p[1] / side) + dy,
-                    (int64_t)floor(p[2] / side) + dz};
-    uint64_t key = 0;
-    for (int k = 0; k < 3; k++)
-        key = key << 21 | ((uint64_t)(c[k] + (1 << 20)) & 0x1fffff);
-    return key;
-}
-
-/* The boundary loops of at most max_hole edges with no other border
- * within reach: their vertices flagged in hole[]; returns how many loops,
- * or -1 without memory. A vertex is on the boundary when the hashes of
- * its fan's outgoing and incoming neighbours differ (a closed fan has the
- * same neighbours both ways); only the half-edges between such vertices
- * are then matched, by sorting. A small loop near another border (two
- * sheets passing closer than the sampling: two spheres touching) is left
- * alone: the front run again would join them there. */
-static long small_loops(const float *xyz, const uint32_t *tri, size_t nt, size_t n,
-                        uint32_t max_hole, double reach, uint8_t *hole)
-{
-    uint64_t *sum = tsl_calloc_array(n + 1, sizeof *sum), *half = NULL, *cells = NULL;
-    uint32_t *next = NULL, *loop = NULL;
+    uint64_t *sum = tsl_calloc_array(n + 1, sizeof *sum), *half = NULL;
+    uint32_t *next = NULL;
     long loops = -1;
     if (!sum)
         return -1;
@@ -168,9 +153,7 @@ static long small_loops(const float *xyz, const uint32_t *tri, size_t nt, size_t
             nh += sum[tri[3 * t + (size_t)k]] && sum[tri[3 * t + (size_t)(k + 1) % 3]];
     half = tsl_alloc_array(nh + 1, sizeof *half);
     next = tsl_alloc_array(n + 1, sizeof *next);
-    loop = tsl_alloc_array(n + 1, sizeof *loop);
-    cells = tsl_alloc_array(nh + 1, sizeof *cells);
-    if (!half || !next || !loop || !cells)
+    if (!half || !next)
         goto done;
     nh = 0;
     for (size_t t = 0; t < nt; t++)
@@ -181,8 +164,6 @@ static long small_loops(const float *xyz, const uint32_t *tri, size_t nt, size_t
         }
     qsort(half, nh, sizeof *half, cmp_u64);
     memset(next, 0xff, (n + 1) * sizeof *next);
-    memset(loop, 0xff, (n + 1) * sizeof *loop);
-    size_t nb = 0; /* boundary vertices, by cell (key << 32 | vertex) */
     for (size_t i = 0; i < nh;) {
         size_t j = i;
         while (j < nh && half[j] >> 1 == half[i] >> 1)
@@ -190,59 +171,19 @@ static long small_loops(const float *xyz, const uint32_t *tri, size_t nt, size_t
         if (j - i == 1) {
             uint32_t lo = (uint32_t)(half[i] >> 33), hi = (uint32_t)(half[i] >> 1) & 0xffffffffu;
             uint32_t a = half[i] & 1 ? hi : lo, b = half[i] & 1 ? lo : hi;
-            if (next[a] == NONE)
-                cells[nb++] = cell_key(xyz + 3 * (size_t)a, reach, 0, 0, 0) << 32 | a;
             next[a] = next[a] == NONE ? b : (uint32_t)n; /* n: two open edges (a pinch) */
         }
         i = j;
     }
-    qsort(cells, nb, sizeof *cells, cmp_u64);
-    /* Each loop numbered by its least vertex (pinches and open paths: n). */
-    for (size_t i = 0; i < nb; i++) {
-        uint32_t v = (uint32_t)cells[i], k = 0, x = v, low = v;
-        if (loop[v] != NONE)
-            continue;
-        do {
+    loops = 0;
+    for (uint32_t v = 0; v < n; v++) {
+        uint32_t k = 0, x = v, low = v;
+        while (k <= max_hole && next[x] < n && (k == 0 || x != v)) {
             low = x < low ? x : low;
             x = next[x];
             k++;
-        } while (x < n && x != v && k <= n);
-        uint32_t id = x == v ? low : (uint32_t)n;
-        for (x = v; x < n && loop[x] == NONE; x = next[x])
-            loop[x] = id;
-    }
-    loops = 0;
-    for (uint32_t v = 0; v < n; v++) {
-        if (loop[v] != v)
-            continue;
-        uint32_t k = 0, x = v;
-        bool alone = true;
-        do {
-            for (int c = 0; c < 27 && alone; c++) {
-                uint64_t key = cell_key(xyz + 3 * (size_t)x, reach, c % 3 - 1, c / 3 % 3 - 1,
-                                        c / 9 - 1);
-                size_t lo = 0, hi = nb;
-                while (lo < hi) { /* the cell's first entry */
-                    size_t mid = (lo + hi) / 2;
-                    if (cells[mid] >> 32 < key)
-                        lo = mid + 1;
-                    else
-                        hi = mid;
-                }
-                for (; lo < nb && cells[lo] >> 32 == key && alone; lo++) {
-                    uint32_t u = (uint32_t)cells[lo];
-                    double d2 = 0.0;
-                    for (int a = 0; a < 3; a++) {
-                        double d = (double)xyz[3 * (size_t)u + a] - xyz[3 * (size_t)x + a];
-                        d2 += d * d;
-                    }
-                    alone = loop[u] == v || d2 > reach * reach;
-                }
-            }
-            x = next[x];
-            k++;
-        } while (x != v && alone);
-        if (!alone || k < 3 || k > max_hole)
+        }
+        if (x != v || k < 3 || k > max_hole || low != v)
             continue;
         loops++;
         do {
@@ -254,8 +195,6 @@ done:
     free(sum);
     free(half);
     free(next);
-    free(loop);
-    free(cells);
     return loops;
 }
 
@@ -309,20 +248,18 @@ done:
 /* Step 1b: small holes the front could not close (its ear clipping finds
  * every ear refused, mostly where the triangles beside the hole fold over
  * each other): the triangles at their vertices are dropped and the front
- * runs again from the rest, once. */
+ * runs again from the rest, once. Where two sheets pass closer than the
+ * sampling (two spheres touching), that front can join them through a
+ * hole: a repair that leaves fewer edge-connected components is undone. */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
                                   tessel_recon_summary *summary)
 {
-    /* The longest edge the front makes (2 mu spacings, about), from the
-     * farthest point it meshes again (a spacing or two beyond the loop). */
-    double reach = (2.0 * summary->mu + 2.0) * summary->spacing;
-    if (params->max_hole < 3 || !(reach > 0.0))
+    if (params->max_hole < 3)
         return TESSEL_OK;
     size_t n = cloud->count;
     uint8_t *hole = tsl_calloc_array(n + 1, 1), *touched = tsl_calloc_array(n + 1, 1);
-    long loops = hole && touched ? small_loops(cloud->xyz, all->tris, all->count, n,
-                                               params->max_hole, reach, hole)
+    long loops = hole && touched ? small_loops(all->tris, all->count, n, params->max_hole, hole)
                                  : -1;
     size_t before_count = all->count;
     long had = loops > 0 ? edge_components(all->tris, before_count, n) : 0;
