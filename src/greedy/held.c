@@ -198,53 +198,6 @@ done:
     return loops;
 }
 
-static uint32_t uf_find(uint32_t *up, uint32_t x)
-{
-    while (up[x] != x)
-        x = up[x] = up[up[x]];
-    return x;
-}
-
-/* The number of edge-connected components of tri[0 .. nt) over n
- * vertices (two fans at one vertex do not join), or -1 without memory:
- * triangles at a vertex that share a second vertex share an edge. */
-static long edge_components(const uint32_t *tri, size_t nt, size_t n)
-{
-    size_t *start = tsl_calloc_array(n + 2, sizeof *start);
-    uint32_t *inc = tsl_alloc_array(3 * nt + 1, sizeof *inc);
-    uint32_t *up = tsl_alloc_array(nt + 1, sizeof *up);
-    long count = -1;
-    if (!start || !inc || !up)
-        goto done;
-    for (size_t i = 0; i < 3 * nt; i++)
-        start[tri[i] + 2]++;
-    for (size_t v = 0; v < n; v++)
-        start[v + 2] += start[v + 1];
-    for (size_t t = 0; t < nt; t++) {
-        up[t] = (uint32_t)t;
-        for (int k = 0; k < 3; k++)
-            inc[start[tri[3 * t + (size_t)k] + 1]++] = (uint32_t)t;
-    }
-    for (size_t v = 0; v < n; v++)
-        for (size_t i = start[v]; i < start[v + 1]; i++)
-            for (size_t j = i + 1; j < start[v + 1]; j++) {
-                const uint32_t *a = tri + 3 * (size_t)inc[i], *b = tri + 3 * (size_t)inc[j];
-                int shared = 0;
-                for (int x = 0; x < 3; x++)
-                    shared += a[x] == b[0] || a[x] == b[1] || a[x] == b[2];
-                if (shared >= 2)
-                    up[uf_find(up, inc[i])] = uf_find(up, inc[j]);
-            }
-    count = 0;
-    for (size_t t = 0; t < nt; t++)
-        count += uf_find(up, (uint32_t)t) == t;
-done:
-    free(start);
-    free(inc);
-    free(up);
-    return count;
-}
-
 /* Step 1b: small holes the front could not close (its ear clipping finds
  * every ear refused, mostly where the triangles beside the hole fold over
  * each other): the triangles at their vertices are dropped and the front
@@ -262,10 +215,8 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
     long loops = hole && touched ? small_loops(all->tris, all->count, n, params->max_hole, hole)
                                  : -1;
     size_t before_count = all->count;
-    long had = loops > 0 ? edge_components(all->tris, before_count, n) : 0;
     uint32_t *saved = loops > 0 ? tsl_alloc_array(3 * before_count, sizeof *saved) : NULL;
-    tessel_status s = loops < 0 || had < 0 || (loops > 0 && !saved) ? TESSEL_ERR_NOMEM
-                                                                     : TESSEL_OK;
+    tessel_status s = loops < 0 || (loops > 0 && !saved) ? TESSEL_ERR_NOMEM : TESSEL_OK;
     if (loops > 0 && s == TESSEL_OK) {
         memcpy(saved, all->tris, 3 * before_count * sizeof *saved);
         tessel_recon_summary before = *summary;
@@ -282,10 +233,8 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
         s = tsl_single_fans(n, all->tris, &all->count, touched);
         if (s == TESSEL_OK)
             s = front_again(cloud, params, "greedy: hole repair", callbacks, all, summary);
-        long now = s == TESSEL_OK ? edge_components(all->tris, all->count, n) : 0;
-        if (now < 0)
-            s = TESSEL_ERR_NOMEM;
-        if (s == TESSEL_OK && now < had) { /* it joined two sheets: undone */
+        /* The passes count components (edge-connected, as tessel_mesh_check). */
+        if (s == TESSEL_OK && summary->components < before.components) { /* joined: undone */
             memcpy(all->tris, saved, 3 * before_count * sizeof *saved);
             all->count = before_count;
             *summary = before;
