@@ -13,6 +13,8 @@
  *    the wrong way are flipped, their rims and the triangles
  *    at points left with two fans (tsl_single_fans) dropped, and the front
  *    runs again from what is left (params.existing) to mesh the seams.
+ * 1b. small holes the front's ear clipping could not close are reopened
+ *    and meshed again (reopen_holes).
  * 2. diagonals are flipped where the two angles facing them add up to
  *    more than pi, the Delaunay rule (tsl_flip_diagonals, with the
  *    refinement's checks). Joining
@@ -203,7 +205,8 @@ done:
  * each other): the triangles at their vertices are dropped and the front
  * runs again from the rest, once. Where two sheets pass closer than the
  * sampling (two spheres touching), that front can join them through a
- * hole: a repair that leaves fewer edge-connected components is undone. */
+ * hole, or it can leave a piece cut off: a repair that changes the number
+ * of components is undone. */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
                                   tessel_recon_summary *summary)
@@ -234,7 +237,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
         if (s == TESSEL_OK)
             s = front_again(cloud, params, "greedy: hole repair", callbacks, all, summary);
         /* The passes count components (edge-connected, as tessel_mesh_check). */
-        if (s == TESSEL_OK && summary->components < before.components) { /* joined: undone */
+        if (s == TESSEL_OK && summary->components != before.components) { /* joined or split: undone */
             memcpy(all->tris, saved, 3 * before_count * sizeof *saved);
             all->count = before_count;
             *summary = before;
