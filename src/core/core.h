@@ -49,6 +49,16 @@ static inline bool tsl_add_size(size_t a, size_t b, size_t *out)
     return true;
 }
 
+/* A 64-bit hash of z (SplitMix64's finaliser): for hashed subsets and
+ * set fingerprints, the same on every machine. */
+static inline uint64_t tsl_mix64(uint64_t z)
+{
+    z += 0x9E3779B97F4A7C15ULL;
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+    return z ^ (z >> 31);
+}
+
 /* malloc(count*size) with overflow check; NULL on overflow or failure. */
 void *tsl_alloc_array(size_t count, size_t size);
 /* calloc-like, zeroed. */

@@ -116,14 +116,6 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
     return s;
 }
 
-static uint64_t mix(uint64_t x)
-{
-    x += 0x9e3779b97f4a7c15u;
-    x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9u;
-    x = (x ^ (x >> 27)) * 0x94d049bb133111ebu;
-    return x ^ (x >> 31);
-}
-
 static int cmp_u64(const void *a, const void *b)
 {
     uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
@@ -146,8 +138,8 @@ static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_h
     for (size_t t = 0; t < nt; t++)
         for (int k = 0; k < 3; k++) {
             uint32_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
-            sum[a] += mix(b);
-            sum[b] -= mix(a);
+            sum[a] += tsl_mix64(b);
+            sum[b] -= tsl_mix64(a);
         }
     size_t nh = 0;
     for (size_t t = 0; t < nt; t++)

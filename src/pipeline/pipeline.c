@@ -70,14 +70,6 @@ tessel_smooth_recon_params tessel_smooth_recon_params_default(void)
     return p;
 }
 
-static uint64_t mix64(uint64_t z)
-{
-    z += 0x9E3779B97F4A7C15ULL;
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
-    return z ^ (z >> 31);
-}
-
 /* The hash of a point index at or below which a fraction of the points
  * falls (all of them from 1 up). */
 static uint64_t hash_limit(double fraction)
@@ -93,7 +85,7 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
     uint64_t limit = hash_limit(keep);
     size_t n = 0;
     for (size_t i = 0; i < c->count; i++)
-        n += mix64(i) <= limit;
+        n += tsl_mix64(i) <= limit;
     tessel_status st = tessel_cloud_alloc(out, n, c->normals != NULL, c->rgb != NULL);
     if (st)
         return st;
@@ -101,7 +93,7 @@ static tessel_status thin_cloud(const tessel_cloud *c, double keep, tessel_cloud
     memcpy(out->viewpoint, c->viewpoint, sizeof out->viewpoint);
     out->has_viewpoint = c->has_viewpoint;
     for (size_t i = 0, j = 0; i < c->count; i++) {
-        if (mix64(i) > limit)
+        if (tsl_mix64(i) > limit)
             continue;
         memcpy(out->xyz + 3 * j, c->xyz + 3 * i, 3 * sizeof *out->xyz);
         if (c->normals)
@@ -144,11 +136,11 @@ static float *hash_subset(const tessel_cloud *cloud, uint64_t limit, size_t *m)
 {
     size_t n = 0;
     for (size_t i = 0; i < cloud->count; i++)
-        n += mix64(i) <= limit;
+        n += tsl_mix64(i) <= limit;
     float *xyz = tsl_alloc_array(n ? n : 1, 3 * sizeof *xyz);
     if (xyz)
         for (size_t i = 0, j = 0; i < cloud->count; i++)
-            if (mix64(i) <= limit)
+            if (tsl_mix64(i) <= limit)
                 memcpy(xyz + 3 * j++, cloud->xyz + 3 * i, 3 * sizeof *xyz);
     *m = n;
     return xyz;
