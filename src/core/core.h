@@ -49,6 +49,13 @@ static inline bool tsl_add_size(size_t a, size_t b, size_t *out)
     return true;
 }
 
+/* qsort / bsearch order of uint64_t. */
+static inline int tsl_cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
 /* A 64-bit hash of z (SplitMix64's finaliser): for hashed subsets and
  * set fingerprints, the same on every machine. */
 static inline uint64_t tsl_mix64(uint64_t z)

@@ -116,12 +116,6 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
     return s;
 }
 
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return (x > y) - (x < y);
-}
-
 /* Flags in hole[] the vertices of the boundary loops of at most max_hole
  * edges; returns how many loops, or -1 without memory. A vertex is on the
  * boundary when the hashes of its fan's outgoing and incoming neighbours
@@ -156,7 +150,7 @@ static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_h
             if (sum[a] && sum[b]) /* the edge's key, its direction in the low bit */
                 half[nh++] = a < b ? (a << 33 | b << 1) : (b << 33 | a << 1 | 1);
         }
-    qsort(half, nh, sizeof *half, cmp_u64);
+    qsort(half, nh, sizeof *half, tsl_cmp_u64);
     memset(next, 0xff, (n + 1) * sizeof *next);
     for (size_t i = 0; i < nh;) {
         size_t j = i;

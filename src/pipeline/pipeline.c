@@ -423,12 +423,6 @@ static tessel_status defects_of(const tessel_mesh *m, const tessel_front_stats *
     return st;
 }
 
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : x > y;
-}
-
 /* Sets clear[] for the representatives of index ix within radius of q. */
 static tessel_status mark_clear(const tessel_index *ix, const float q[3], double radius,
                                 uint8_t *clear)
@@ -485,7 +479,7 @@ static tessel_status hole_sites(const tessel_mesh *m, site_list *out)
         for (int i = 0; i < 3; i++)
             keys[3 * t + i] = (uint64_t)m->triangles[3 * t + i] << 32 |
                               m->triangles[3 * t + (i + 1) % 3];
-    qsort(keys, 3 * nt, sizeof *keys, cmp_u64);
+    qsort(keys, 3 * nt, sizeof *keys, tsl_cmp_u64);
     for (size_t v = 0; v < nv; v++) {
         parent[v] = (uint32_t)v;
         bnext[v] = TESSEL_NONE;
@@ -493,7 +487,7 @@ static tessel_status hole_sites(const tessel_mesh *m, site_list *out)
     for (size_t e = 0; e < 3 * nt; e++) {
         uint32_t a = (uint32_t)(keys[e] >> 32), b = (uint32_t)keys[e];
         uint64_t twin = (uint64_t)b << 32 | a;
-        if (bsearch(&twin, keys, 3 * nt, sizeof *keys, cmp_u64))
+        if (bsearch(&twin, keys, 3 * nt, sizeof *keys, tsl_cmp_u64))
             continue;
         bnext[a] = b;
         uint32_t ra = tsl_uf_find(parent, a), rb = tsl_uf_find(parent, b);
