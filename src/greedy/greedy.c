@@ -740,11 +740,14 @@ static tessel_status orient_seed(gp *g, uint32_t R, double n[3], double reach)
     return TESSEL_OK;
 }
 
-static void settle_dead(gp *g, uint32_t R, size_t *counter)
+static void settle_dead(gp *g, uint32_t R, int fate)
 {
-    g->state[R] = (uint8_t)((g->state[R] & ~ST_MASK) | ST_DEAD);
+    size_t *count[] = {NULL, &g->sum.left_duplicate, &g->sum.left_isolated,
+                       &g->sum.left_closed_in, &g->sum.left_untriangulated};
+    g->state[R] = (uint8_t)((g->state[R] & ~ST_MASK) | ST_DEAD |
+                            (fate - FATE_DUPLICATE) * ST_WHY);
     tsl_gp_point_settled(g, R);
-    (*counter)++;
+    (*count[fate])++;
 }
 
 /* Whether R lies on a held triangle near it: its foot on the triangle's
@@ -809,7 +812,7 @@ static tessel_status seed(gp *g, uint32_t R)
         double any;
         if ((s = tsl_gp_nearest(g, R, 0, g->spacing, g->m_cap, &any)) != TESSEL_OK)
             return s;
-        settle_dead(g, R, any <= g->m_cap ? &g->sum.left_closed_in : &g->sum.left_isolated);
+        settle_dead(g, R, any <= g->m_cap ? FATE_CLOSED_IN : FATE_ISOLATED);
         return TESSEL_OK;
     }
     if (m < g->m_floor)
@@ -824,7 +827,7 @@ static tessel_status seed(gp *g, uint32_t R)
     done_near = g->boxd_count;
     /* Fewer than SEED_MIN neighbours make a splinter, not a surface. */
     if (g->cand_count < SEED_MIN || !pca_normal(g->cand, g->cand_count, f.n)) {
-        settle_dead(g, R, done_near ? &g->sum.left_closed_in : &g->sum.left_untriangulated);
+        settle_dead(g, R, done_near ? FATE_CLOSED_IN : FATE_UNTRIANGULATED);
         return TESSEL_OK;
     }
     /* A free point whose neighbours are mostly on the mesh already, whose
@@ -839,7 +842,7 @@ static tessel_status seed(gp *g, uint32_t R)
         meshed += g->head[g->cand[i].idx] != NONE;
     if (2 * meshed > g->cand_count || g->boxd_count > SEED_DONE_RATIO * g->box_count ||
         covered(g, R)) {
-        settle_dead(g, R, &g->sum.left_closed_in);
+        settle_dead(g, R, FATE_CLOSED_IN);
         return TESSEL_OK;
     }
     /* Orientation from up to four spheres around. */
@@ -904,7 +907,7 @@ static tessel_status seed(gp *g, uint32_t R)
         }
     }
     if (!made) {
-        settle_dead(g, R, done_near ? &g->sum.left_closed_in : &g->sum.left_untriangulated);
+        settle_dead(g, R, done_near ? FATE_CLOSED_IN : FATE_UNTRIANGULATED);
         return TESSEL_OK;
     }
     g->sum.seeds++;
@@ -1166,7 +1169,8 @@ tessel_greedy_params tessel_greedy_params_default(void)
  * params; progress under `stage`. */
 tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           const char *stage, const tessel_callbacks *callbacks,
-                          const tessel_triangle_sink *sink, tessel_recon_summary *summary)
+                          const tessel_triangle_sink *sink, uint8_t *fate,
+                          tessel_recon_summary *summary)
 {
     const tessel_greedy_params p = *params;
     gp g;
@@ -1209,6 +1213,10 @@ tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params 
         for (size_t i = 0; i < g.uf_count; i++)
             g.sum.components += g.uf[i] == i;
         *summary = g.sum;
+        for (size_t i = 0; fate && i < g.n; i++)
+            fate[g.orig[i]] = (uint8_t)((g.state[i] & ST_MASK) == ST_DEAD
+                                            ? FATE_DUPLICATE + g.state[i] / ST_WHY
+                                            : FATE_USED);
         tsl_log(callbacks, TESSEL_LOG_DEBUG,
                 "%s: %zu of %zu points used, %zu triangles, %zu components, "
                 "%zu boundary edges, spacing %g",
@@ -1280,7 +1288,7 @@ tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
     if (check || p.flip)
         s = tsl_gp_held(cloud, &p, check, runner, callbacks, sink, &sum);
     else
-        s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, &sum);
+        s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, NULL, &sum);
     if (s != TESSEL_OK)
         return s;
     sum.seconds = tsl_seconds() - t0;

@@ -26,8 +26,14 @@ enum {
     ST_DEAD = 4,     /* left out (duplicate, isolated, ...) */
     ST_MASK = 7,
     ST_QUEUED = 8,   /* in the breadth-first queue */
-    ST_VISITS = 16   /* bits 4-5: times processed as a reference point */
+    ST_VISITS = 16,  /* bits 4-5: times processed as a reference point */
+    ST_WHY = 64      /* bits 6-7 of a left-out point: its fate less
+                        FATE_DUPLICATE */
 };
+
+/* What became of a point (tsl_gp_pass's fate[]): used, or why it was left
+ * out (the summary's left_* counts). */
+enum { FATE_USED = 0, FATE_DUPLICATE, FATE_ISOLATED, FATE_CLOSED_IN, FATE_UNTRIANGULATED };
 
 #define NONE TESSEL_NONE
 /* Boundary points are looked at again when a neighbour changes their fan,
@@ -389,10 +395,12 @@ enum { LINK_FAIL = 0, LINK_NEW, LINK_PREPEND, LINK_APPEND, LINK_CLOSE };
 /* ---- greedy.c ---- */
 
 /* One pass of the front over the cloud (params already checked), its
- * progress reported as `stage`; summary->seconds is left 0. */
+ * progress reported as `stage`; summary->seconds is left 0. fate (NULL, or
+ * one entry per point) receives each point's FATE_*. */
 tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           const char *stage, const tessel_callbacks *callbacks,
-                          const tessel_triangle_sink *sink, tessel_recon_summary *summary);
+                          const tessel_triangle_sink *sink, uint8_t *fate,
+                          tessel_recon_summary *summary);
 
 /* A sink that appends the triangles to a growing array. */
 typedef struct gp_collect {
@@ -400,6 +408,22 @@ typedef struct gp_collect {
     size_t count, cap;
 } gp_collect;
 tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count);
+
+/* ---- local.c ---- */
+
+/* Flags in sel (n entries) every point within radius of a point flagged
+ * in seed, and some points farther (up to about 3.5 radii: cells). */
+tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed, double radius,
+                                 uint8_t *sel);
+
+/* A front over the points flagged in sel only (params checked; mu as
+ * given), from the triangles of all among them (points with a triangle
+ * beyond are frozen); its triangles appended to all, the selected points'
+ * fate[] rewritten, its seeds, holes and refusals added to summary. */
+tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
+                                const tessel_greedy_params *params, const char *stage,
+                                const tessel_callbacks *callbacks, gp_collect *all,
+                                uint8_t *fate, tessel_recon_summary *summary);
 
 /* ---- tiles.c ---- */
 
@@ -413,6 +437,7 @@ typedef struct tsl_gp_tiles_job {
     const tessel_callbacks *callbacks;
     gp_collect *parts;
     tessel_recon_summary *sums;
+    uint8_t *fate; /* per point of cloud: each tile writes its own points' */
 } tsl_gp_tiles_job;
 
 /* Who meshes the tiles: NULL, this process's threads; the MPI runner
@@ -440,12 +465,14 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
                                const tessel_callbacks *cb);
 
 /* The first pass in tiles of at most params->tile_points points, meshed
- * by runner, then the seams closed by a pass over all points; the
- * triangles into *all (held). */
+ * by runner, then the seams closed by a local pass over the points near
+ * the cuts; the triangles into *all (held), every point's FATE_* into
+ * fate. The summary's counts of the mesh (points used, left out,
+ * boundary, components) are left to the caller. */
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, gp_collect *all,
-                                tessel_recon_summary *summary);
+                                uint8_t *fate, tessel_recon_summary *summary);
 
 /* ---- slabs.c ---- */
 

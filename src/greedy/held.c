@@ -14,7 +14,7 @@
  *    at points left with two fans (tsl_single_fans) dropped, and the front
  *    runs again from what is left (params.existing) to mesh the seams.
  * 1b. small holes the front's ear clipping could not close are reopened
- *    and meshed again (reopen_holes).
+ *    and meshed again by a front over the points near them (reopen_holes).
  * 2. diagonals are flipped where the two angles facing them add up to
  *    more than pi, the Delaunay rule (tsl_flip_diagonals, with the
  *    refinement's checks). Joining
@@ -24,6 +24,10 @@
  *
  * Then everything goes to the sink. */
 #include "greedy/greedy.h"
+
+/* The front that closes a small hole sees the points within this many
+ * spheres of influence of the hole's vertices (local.c). */
+#define HOLE_CONTEXT 6.0
 
 /* Flags the vertices of the triangles marked 2 (the rims to drop): only
  * they can be left with more than one fan. */
@@ -39,10 +43,8 @@ static uint8_t *rim_vertices(const uint32_t *tri, size_t nt, const uint8_t *mark
 
 /* The second pass's summary describes the output; the work of the first
  * (seeds, holes, refusals) is added to it. */
-static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary *first,
-                          size_t existing)
+static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary *first)
 {
-    out->triangles += existing;
     out->tiles = first->tiles;
     out->seeds += first->seeds;
     out->holes_closed += first->holes_closed;
@@ -55,7 +57,7 @@ static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary 
  * params.existing), its new triangles added to all. */
 static tessel_status front_again(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                  const char *stage, const tessel_callbacks *callbacks,
-                                 gp_collect *all, tessel_recon_summary *summary)
+                                 gp_collect *all, uint8_t *fate, tessel_recon_summary *summary)
 {
     gp_collect more = {NULL, 0, 0};
     tessel_greedy_params again = *params;
@@ -63,9 +65,9 @@ static tessel_status front_again(const tessel_cloud *cloud, const tessel_greedy_
     again.existing_count = all->count;
     tessel_recon_summary first = *summary;
     tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
-    tessel_status s = tsl_gp_pass(cloud, &again, stage, callbacks, &hold, summary);
+    tessel_status s = tsl_gp_pass(cloud, &again, stage, callbacks, &hold, fate, summary);
     if (s == TESSEL_OK) {
-        merge_summary(summary, &first, all->count);
+        merge_summary(summary, &first);
         s = tsl_gp_collect_emit(all, more.tris, more.count);
     }
     free(more.tris);
@@ -78,7 +80,7 @@ static tessel_status front_again(const tessel_cloud *cloud, const tessel_greedy_
 static tessel_status check_and_repair(const tessel_cloud *cloud,
                                       const tessel_greedy_params *params,
                                       const tessel_callbacks *callbacks, gp_collect *all,
-                                      tessel_recon_summary *summary)
+                                      uint8_t *fate, tessel_recon_summary *summary)
 {
     uint8_t *mark = tsl_alloc_array(all->count + 1, sizeof *mark);
     size_t flipped = 0;
@@ -109,7 +111,8 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
                     : TESSEL_ERR_NOMEM;
         free(touched);
         if (s == TESSEL_OK)
-            s = front_again(cloud, params, "greedy: orientation repair", callbacks, all, summary);
+            s = front_again(cloud, params, "greedy: orientation repair", callbacks, all, fate,
+                            summary);
         summary->reoriented = flipped;
     }
     free(mark);
@@ -117,24 +120,18 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
 }
 
 /* Flags in hole[] the vertices of the boundary loops of at most max_hole
- * edges; returns how many loops, or -1 without memory. A vertex is on the
- * boundary when the hashes of its fan's outgoing and incoming neighbours
- * differ (a closed fan has the same neighbours both ways); only the
- * half-edges between such vertices are then matched, by sorting. */
+ * edges; returns how many loops, or -1 without memory. Only the
+ * half-edges between vertices of open fans (tsl_open_fans) are matched,
+ * by sorting. */
 static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_hole,
                         uint8_t *hole)
 {
-    uint64_t *sum = tsl_calloc_array(n + 1, sizeof *sum), *half = NULL;
+    uint64_t *sum = tsl_alloc_array(n + 1, sizeof *sum), *half = NULL;
     uint32_t *next = NULL;
     long loops = -1;
     if (!sum)
         return -1;
-    for (size_t t = 0; t < nt; t++)
-        for (int k = 0; k < 3; k++) {
-            uint32_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
-            sum[a] += tsl_mix64(b);
-            sum[b] -= tsl_mix64(a);
-        }
+    tsl_open_fans(tri, nt, n, sum);
     size_t nh = 0;
     for (size_t t = 0; t < nt; t++)
         for (int k = 0; k < 3; k++)
@@ -186,31 +183,65 @@ done:
     return loops;
 }
 
+/* The summary's counts of the mesh in all: points used, left out (by
+ * fate[]), boundary edges, components, triangles. */
+static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *fate,
+                               tessel_recon_summary *summary)
+{
+    uint8_t *used = tsl_alloc_array(n + 1, 1);
+    tessel_status s = used ? tsl_mesh_counts(all->tris, all->count, n, used,
+                                             &summary->boundary_edges, &summary->components)
+                           : TESSEL_ERR_NOMEM;
+    if (s == TESSEL_OK) {
+        size_t count[FATE_UNTRIANGULATED + 1] = {0};
+        for (size_t i = 0; i < n; i++)
+            count[used[i] ? FATE_USED : fate[i]]++;
+        summary->points_used = count[FATE_USED];
+        summary->left_duplicate = count[FATE_DUPLICATE];
+        summary->left_isolated = count[FATE_ISOLATED];
+        summary->left_closed_in = count[FATE_CLOSED_IN];
+        summary->left_untriangulated = count[FATE_UNTRIANGULATED];
+        summary->triangles = all->count;
+        summary->points_in = n;
+    }
+    free(used);
+    return s;
+}
+
 /* Step 1b: small holes the front could not close (its ear clipping finds
  * every ear refused, mostly where the triangles beside the hole fold over
- * each other): the triangles at their vertices are dropped and the front
- * runs again from the rest, once. Where two sheets pass closer than the
- * sampling (two spheres touching), that front can join them through a
+ * each other): the triangles at their vertices are dropped and a front
+ * over the points within HOLE_CONTEXT spheres of influence of them runs
+ * again from the triangles there, once. Where two sheets pass closer than
+ * the sampling (two spheres touching), that front can join them through a
  * hole, or it can leave a piece cut off: a repair that changes the number
- * of components is undone. */
+ * of components, or leaves more boundary edges, is undone. summary holds
+ * the counts of the mesh before and after. */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
-                                  tessel_recon_summary *summary)
+                                  uint8_t *fate, tessel_recon_summary *summary)
 {
     if (params->max_hole < 3)
         return TESSEL_OK;
     size_t n = cloud->count;
     uint8_t *hole = tsl_calloc_array(n + 1, 1), *touched = tsl_calloc_array(n + 1, 1);
-    long loops = hole && touched ? small_loops(all->tris, all->count, n, params->max_hole, hole)
-                                 : -1;
+    uint8_t *sel = tsl_calloc_array(n + 1, 1);
+    long loops = hole && touched && sel
+                     ? small_loops(all->tris, all->count, n, params->max_hole, hole)
+                     : -1;
     size_t before_count = all->count;
     uint32_t *saved = loops > 0 ? tsl_alloc_array(3 * before_count, sizeof *saved) : NULL;
-    tessel_status s = loops < 0 || (loops > 0 && !saved) ? TESSEL_ERR_NOMEM : TESSEL_OK;
+    uint8_t *saved_fate = loops > 0 ? tsl_alloc_array(n, 1) : NULL;
+    tessel_status s = loops < 0 || (loops > 0 && (!saved || !saved_fate)) ? TESSEL_ERR_NOMEM
+                                                                          : TESSEL_OK;
     if (loops > 0 && s == TESSEL_OK) {
         memcpy(saved, all->tris, 3 * before_count * sizeof *saved);
+        memcpy(saved_fate, fate, n);
         tessel_recon_summary before = *summary;
+        s = tsl_gp_select_near(cloud->xyz, n, hole, HOLE_CONTEXT * summary->mu * summary->spacing,
+                               sel);
         size_t w = 0;
-        for (size_t t = 0; t < all->count; t++) {
+        for (size_t t = 0; s == TESSEL_OK && t < all->count; t++) {
             uint32_t *v = all->tris + 3 * t;
             if (hole[v[0]] || hole[v[1]] || hole[v[2]]) {
                 touched[v[0]] = touched[v[1]] = touched[v[2]] = 1;
@@ -218,20 +249,31 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             }
             memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
         }
-        all->count = w;
-        s = tsl_single_fans(n, all->tris, &all->count, touched);
+        all->count = s == TESSEL_OK ? w : all->count;
+        tessel_greedy_params hp = *params;
+        hp.mu = summary->mu;
+        hp.mu_from_sampling = 0;
         if (s == TESSEL_OK)
-            s = front_again(cloud, params, "greedy: hole repair", callbacks, all, summary);
-        /* The passes count components (edge-connected, as tessel_mesh_check). */
-        if (s == TESSEL_OK && summary->components != before.components) { /* joined or split: undone */
+            s = tsl_single_fans(n, all->tris, &all->count, touched);
+        if (s == TESSEL_OK)
+            s = tsl_gp_local_pass(cloud, sel, &hp, "greedy: hole repair", callbacks, all, fate,
+                                  summary);
+        if (s == TESSEL_OK)
+            s = summarize(n, all, fate, summary);
+        /* Joined or split, or more open: undone. */
+        if (s == TESSEL_OK && (summary->components != before.components ||
+                               summary->boundary_edges > before.boundary_edges)) {
             memcpy(all->tris, saved, 3 * before_count * sizeof *saved);
+            memcpy(fate, saved_fate, n);
             all->count = before_count;
             *summary = before;
         }
     }
     free(hole);
     free(touched);
+    free(sel);
     free(saved);
+    free(saved_fate);
     return s;
 }
 
@@ -242,16 +284,21 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
 {
     gp_collect all = {NULL, 0, 0};
     tessel_triangle_sink hold = {tsl_gp_collect_emit, &all};
-    tessel_status s = params->tile_points && cloud->count > params->tile_points &&
+    uint8_t *fate = tsl_alloc_array(cloud->count + 1, 1);
+    tessel_status s = !fate ? TESSEL_ERR_NOMEM
+                      : params->tile_points && cloud->count > params->tile_points &&
                               !params->existing_count
-                          ? tsl_gp_tiled_pass(cloud, params, runner, callbacks, &all, summary)
-                          : tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, summary);
+                          ? tsl_gp_tiled_pass(cloud, params, runner, callbacks, &all, fate, summary)
+                          : tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, fate, summary);
     if (s == TESSEL_OK && check)
-        s = check_and_repair(cloud, params, callbacks, &all, summary);
+        s = check_and_repair(cloud, params, callbacks, &all, fate, summary);
     if (s == TESSEL_OK)
-        s = reopen_holes(cloud, params, callbacks, &all, summary);
+        s = summarize(cloud->count, &all, fate, summary);
+    if (s == TESSEL_OK)
+        s = reopen_holes(cloud, params, callbacks, &all, fate, summary);
     if (s == TESSEL_OK && params->flip) {
-        /* Added to the tiles' flips, when there were tiles. */
+        /* Added to the tiles' flips, when there were tiles. The flips
+         * change no count of the summary. */
         size_t flips = 0;
         s = tsl_progress(callbacks, "diagonal flips", 0.0);
         if (s == TESSEL_OK)
@@ -268,5 +315,6 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         s = sink->emit(sink->user_data, all.tris + 3 * t, n);
     }
     free(all.tris);
+    free(fate);
     return s;
 }

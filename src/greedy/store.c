@@ -996,15 +996,15 @@ static tessel_status estimate_spacing(gp *g, double *spacing)
 }
 
 /* Of exact duplicates, init keeps the first in dexel order. When an
- * existing triangle names another of them, that one is kept instead: the
- * caller's triangles and the new ones must name the same point (else the
- * two meet at a position without sharing a vertex). The former keep
- * becomes a duplicate of it. Points left out but for duplicates come
- * later, so every dead point here is a duplicate. Of two both named by
- * existing triangles the first keeps the position (such a mesh touches
- * itself there, which the mesh check calls invalid). */
+ * existing triangle names another of them, or another is frozen, that one
+ * is kept instead: the caller's triangles and the new ones must name the
+ * same point (else the two meet at a position without sharing a vertex).
+ * The former keep becomes a duplicate of it. Points left out but for
+ * duplicates come later, so every dead point here is a duplicate. Of two
+ * both named the first keeps the position (such a mesh touches itself
+ * there, which the mesh check calls invalid). */
 static tessel_status adopt_used_duplicates(gp *g, const uint32_t *tris, size_t count,
-                                           const uint32_t *inv)
+                                           const uint8_t *frozen, const uint32_t *inv)
 {
     uint8_t *named = tsl_calloc_array(g->n, sizeof *named);
     if (!named)
@@ -1012,10 +1012,17 @@ static tessel_status adopt_used_duplicates(gp *g, const uint32_t *tris, size_t c
     for (size_t c = 0; c < 3 * count; c++)
         if (tris[c] < g->n)
             named[inv[tris[c]]] = 1;
-    for (size_t c = 0; c < 3 * count; c++) {
-        if (tris[c] >= g->n)
+    for (size_t i = 0; frozen && i < g->n; i++)
+        named[i] |= frozen[g->orig[i]];
+    for (size_t c = 0; c < 3 * count + g->n; c++) {
+        uint32_t v;
+        if (c < 3 * count && tris[c] < g->n)
+            v = inv[tris[c]];
+        else if (c >= 3 * count && frozen && frozen[g->orig[c - 3 * count]])
+            v = (uint32_t)(c - 3 * count);
+        else
             continue;
-        uint32_t v = inv[tris[c]], k = v;
+        uint32_t k = v;
         while (st(g, k) == ST_DEAD)
             k = g->ls[k];
         if (k == v || named[k])
@@ -1034,7 +1041,8 @@ static tessel_status adopt_used_duplicates(gp *g, const uint32_t *tris, size_t c
 /* Imports params->existing: links the triangles, then derives every touched
  * point's fan; fans that are not a single path or cycle, or edges used twice
  * in one direction, make the input invalid. A frozen point (frozen may be
- * NULL) is completed as it stands, whatever its fan here. */
+ * NULL) is completed as it stands, whatever its fan here, also with no
+ * triangle here (its triangles are elsewhere: no new one may touch it). */
 tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count,
                                      const uint8_t *frozen)
 {
@@ -1043,7 +1051,7 @@ tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count,
         return TESSEL_ERR_NOMEM;
     for (size_t i = 0; i < g->n; i++)
         inv[g->orig[i]] = (uint32_t)i;
-    tessel_status s = adopt_used_duplicates(g, tris, count, inv);
+    tessel_status s = adopt_used_duplicates(g, tris, count, frozen, inv);
     for (size_t t = 0; t < count && s == TESSEL_OK; t++) {
         uint32_t v[3];
         for (int k = 0; k < 3; k++) {
@@ -1145,6 +1153,12 @@ tessel_status tsl_gp_import_existing(gp *g, const uint32_t *tris, size_t count,
             }
         }
     }
+    for (size_t p = 0; frozen && p < g->n; p++)
+        if (frozen[g->orig[p]] && st(g, (uint32_t)p) == ST_FREE) {
+            g->sum.points_used++;
+            g->state[p] = (uint8_t)((g->state[p] & ~ST_MASK) | ST_DONE);
+            tsl_gp_point_settled(g, (uint32_t)p);
+        }
     return TESSEL_OK;
 }
 

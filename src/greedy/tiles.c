@@ -1,11 +1,12 @@
 /* Greedy projection in tiles: more than tile_points points are cut into
  * tiles (core/tiles.c), each tile's points meshed by their own front in
- * parallel and its diagonals flipped, the tiles' triangles near a cut dropped (a front that saw only
- * one side of the cut made them), and one pass over all points, started
- * from the rest (the `existing` triangles of tessel_greedy_params), closes
- * the seams as a front closes any place where two fronts meet. The tiles
- * depend on the points and tile_points only, so the result does not depend
- * on the thread count. */
+ * parallel and its diagonals flipped, the tiles' triangles near a cut
+ * dropped (a front that saw only one side of the cut made them), and a
+ * front over the points near the cuts (local.c), started from the
+ * triangles there (the `existing` triangles of tessel_greedy_params),
+ * closes the seams as a front closes any place where two fronts meet. The
+ * tiles depend on the points and tile_points only, so the result does not
+ * depend on the thread count. */
 #include "greedy/greedy.h"
 
 #include <stdatomic.h>
@@ -23,6 +24,11 @@
  * the advancing front's tiles, front/tiles.c). */
 #define TILE_VOTE_REACH 4.0
 #define TILE_PAIR_REACH 4.0
+
+/* The front that closes the seams sees the points within this many bands
+ * of a dropped triangle beyond the band (its guard tests against their
+ * triangles), as out of core (slabs.c). */
+#define TILE_CONTEXT 3.0
 
 /* Progress of the tiles: the calling thread reports the tiles finished;
  * a cancellation it hears stops every tile at its next report. */
@@ -69,9 +75,11 @@ static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, 
  * tiles that disagree leave a seam no front can close): tsl_orient_tiles
  * with the front's reaches, in mean spacings beyond the band. Components it
  * leaves out (contradicted by their neighbours, small pieces at a cut) are
- * dropped; the front that closes the seams meshes their points again. */
+ * dropped, their points flagged in seed: the front that closes the seams
+ * meshes them again. */
 static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, const tsl_tiles *cut,
-                                  double band, double spacing, size_t tile_points)
+                                  double band, double spacing, size_t tile_points,
+                                  uint8_t *seed)
 {
     size_t count = all->count, ncomp = 0;
     uint32_t *comp = tsl_alloc_array(count + 1, sizeof *comp);
@@ -91,11 +99,15 @@ static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, co
     if (st)
         goto done;
     size_t w = 0;
-    for (size_t t = 0; t < count; t++)
-        if (!drop[comp[t]]) {
-            memmove(all->tris + 3 * w, all->tris + 3 * t, 3 * sizeof *all->tris);
-            w++;
+    for (size_t t = 0; t < count; t++) {
+        const uint32_t *v = all->tris + 3 * t;
+        if (drop[comp[t]]) {
+            seed[v[0]] = seed[v[1]] = seed[v[2]] = 1;
+            continue;
         }
+        memmove(all->tris + 3 * w, v, 3 * sizeof *v);
+        w++;
+    }
     all->count = w;
 done:
     free(comp);
@@ -113,8 +125,16 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
     tessel_status st = tile_cloud(job->cloud, ids, m, &sub);
     if (st)
         return st;
+    uint8_t *fate = tsl_alloc_array(m + 1, 1);
+    if (!fate) {
+        tessel_cloud_free(&sub);
+        return TESSEL_ERR_NOMEM;
+    }
     tessel_triangle_sink sink = {tsl_gp_collect_emit, out};
-    st = tsl_gp_pass(&sub, job->params, "greedy", cb, &sink, &job->sums[k]);
+    st = tsl_gp_pass(&sub, job->params, "greedy", cb, &sink, fate, &job->sums[k]);
+    for (size_t i = 0; st == TESSEL_OK && i < m; i++)
+        job->fate[ids[i]] = fate[i];
+    free(fate);
     /* The tile's flips here, on one thread, leave the pass over the whole
      * mesh only the seams and repairs to flip. */
     if (st == TESSEL_OK && job->params->flip)
@@ -168,7 +188,7 @@ done:
 static tessel_status mesh_tiles(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, tsl_tiles *cut,
-                                gp_collect **parts, tessel_recon_summary **sums)
+                                gp_collect **parts, tessel_recon_summary **sums, uint8_t *fate)
 {
     *parts = NULL;
     *sums = NULL;
@@ -181,7 +201,7 @@ static tessel_status mesh_tiles(const tessel_cloud *cloud, const tessel_greedy_p
         return TESSEL_ERR_NOMEM;
     tessel_greedy_params tp = *params;
     tp.tile_points = 0;
-    tsl_gp_tiles_job job = {cloud, &tp, cut, cut->count, callbacks, *parts, *sums};
+    tsl_gp_tiles_job job = {cloud, &tp, cut, cut->count, callbacks, *parts, *sums, fate};
     return runner ? runner->run(runner->ctx, &job) : run_threads(NULL, &job);
 }
 
@@ -199,36 +219,42 @@ tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_p
                                 const tessel_callbacks *callbacks)
 {
     tsl_tiles cut = {0};
-    gp_collect *parts;
-    tessel_recon_summary *sums;
-    tessel_status st = mesh_tiles(cloud, params, runner, callbacks, &cut, &parts, &sums);
+    gp_collect *parts = NULL;
+    tessel_recon_summary *sums = NULL;
+    uint8_t *fate = tsl_alloc_array(cloud->count + 1, 1);
+    tessel_status st = fate ? mesh_tiles(cloud, params, runner, callbacks, &cut, &parts, &sums, fate)
+                            : TESSEL_ERR_NOMEM;
     free_tiles(&cut, parts, sums);
+    free(fate);
     return st;
 }
 
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, gp_collect *all,
-                                tessel_recon_summary *summary)
+                                uint8_t *fate, tessel_recon_summary *summary)
 {
     tsl_tiles cut = {0};
-    gp_collect *parts, more = {NULL, 0, 0};
-    tessel_recon_summary *sums;
-    uint8_t *touched = NULL;
-    tessel_status st = mesh_tiles(cloud, params, runner, callbacks, &cut, &parts, &sums);
+    gp_collect *parts = NULL;
+    tessel_recon_summary *sums = NULL;
+    size_t n = cloud->count;
+    uint8_t *touched = NULL, *seed = NULL, *sel = NULL;
+    tessel_status st = mesh_tiles(cloud, params, runner, callbacks, &cut, &parts, &sums, fate);
     if (st)
         goto done;
-    if (!(touched = tsl_calloc_array(cloud->count, sizeof *touched))) {
+    if (!(touched = tsl_calloc_array(n, 1)) || !(seed = tsl_calloc_array(n, 1)) ||
+        !(sel = tsl_calloc_array(n, 1))) {
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
     size_t nt = cut.count;
     /* The tiles' triangles, less those near a cut, in tile order. */
-    double reach = 0.0, spacing = 0.0;
+    double reach = 0.0, spacing = 0.0, mu = 0.0;
     for (size_t k = 0; k < nt; k++) {
         double r = TILE_BAND * sums[k].mu * sums[k].spacing;
         reach = r > reach ? r : reach;
         spacing = sums[k].spacing > spacing ? sums[k].spacing : spacing;
+        mu = sums[k].mu > mu ? sums[k].mu : mu;
     }
     for (size_t k = 0; k < nt && !st; k++) {
         const gp_collect *c = &parts[k];
@@ -241,29 +267,47 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
             st = tsl_gp_collect_emit(all, v, 1);
         }
     }
-    if (st || (st = tsl_single_fans(cloud->count, all->tris, &all->count, touched)) ||
-        (st = orient_tiles(cloud, all, &cut, reach, spacing, params->tile_points)))
+    if (st)
         goto done;
-    /* The seams: one front over all points from those triangles. */
+    memcpy(seed, touched, n);
+    if ((st = tsl_single_fans(n, all->tris, &all->count, touched)) ||
+        (st = orient_tiles(cloud, all, &cut, reach, spacing, params->tile_points, seed)))
+        goto done;
+    /* The seams: a front over the points of the bands, and those near a
+     * dropped triangle or a border of the tiles' mesh (a second look there,
+     * with the neighbours beyond a cut: a tile's front closes fewer of the
+     * notches at an open surface's border than one over all points), from
+     * the triangles among them. */
+    uint64_t *open = tsl_alloc_array(n + 1, sizeof *open);
+    if (!open) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    tsl_open_fans(all->tris, all->count, n, open);
+    for (size_t i = 0; i < n; i++) {
+        sel[i] = cut.dcut[i] < reach;
+        seed[i] |= open[i] != 0;
+    }
+    free(open);
+    if ((st = tsl_gp_select_near(cloud->xyz, n, seed, TILE_CONTEXT * reach, sel)))
+        goto done;
     tessel_greedy_params sp = *params;
-    sp.tile_points = 0;
-    sp.existing = all->tris;
-    sp.existing_count = all->count;
-    tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
-    if ((st = tsl_gp_pass(cloud, &sp, "greedy: seams", callbacks, &hold, summary)))
-        goto done;
-    summary->triangles += all->count;
+    sp.mu = mu;
+    sp.mu_from_sampling = 0;
     for (size_t k = 0; k < nt; k++) {
         summary->seeds += sums[k].seeds;
         summary->holes_closed += sums[k].holes_closed;
         summary->rejected_intersecting += sums[k].rejected_intersecting;
         summary->flips += sums[k].flips;
+        summary->spacing += sums[k].spacing * (double)sums[k].points_in / (double)n;
     }
+    summary->mu = mu;
     summary->tiles = nt;
-    st = tsl_gp_collect_emit(all, more.tris, more.count);
+    st = tsl_gp_local_pass(cloud, sel, &sp, "greedy: seams", callbacks, all, fate, summary);
 done:
     free_tiles(&cut, parts, sums);
     free(touched);
-    free(more.tris);
+    free(seed);
+    free(sel);
     return st;
 }

@@ -81,6 +81,17 @@ tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint
  * triangle). Triangles whose first vertex is TESSEL_NONE (removed) are
  * skipped. */
 void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *root);
+/* sum[v] (nv entries) = the sum of mix(w) over v's outgoing edges v -> w
+ * less the sum over its incoming ones (tsl_mix64, a bijection, wrapping):
+ * 0 exactly when v's fan is closed, if every vertex has a single fan. */
+void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, uint64_t *sum);
+/* Of a mesh whose vertices each have a single fan, consistently oriented
+ * (as every method's output): used[v] (nv entries) whether v is on a
+ * triangle, the boundary edges (one per open fan) and the connected
+ * components (by shared vertices, which for single fans is by edges, as
+ * tessel_mesh_check counts them). */
+tessel_status tsl_mesh_counts(const uint32_t *tri, size_t nt, size_t nv, uint8_t *used,
+                              size_t *boundary, size_t *components);
 /* The same components numbered 0 .. *ncomp in the order of their first
  * triangle: comp[t] for each of the nt triangles (none removed). */
 tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *comp,

@@ -149,3 +149,39 @@ tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv,
     free(label);
     return TESSEL_OK;
 }
+
+void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, uint64_t *sum)
+{
+    memset(sum, 0, nv * sizeof *sum);
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            uint32_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
+            sum[a] += tsl_mix64(b);
+            sum[b] -= tsl_mix64(a);
+        }
+}
+
+tessel_status tsl_mesh_counts(const uint32_t *tri, size_t nt, size_t nv, uint8_t *used,
+                              size_t *boundary, size_t *components)
+{
+    uint64_t *sum = tsl_alloc_array(nv + 1, sizeof *sum);
+    uint32_t *root = tsl_alloc_array(nv + 1, sizeof *root);
+    if (!sum || !root) {
+        free(sum);
+        free(root);
+        return TESSEL_ERR_NOMEM;
+    }
+    tsl_open_fans(tri, nt, nv, sum);
+    tsl_vertex_components(tri, nt, nv, root);
+    memset(used, 0, nv);
+    for (size_t i = 0; i < 3 * nt; i++)
+        used[tri[i]] = 1;
+    *boundary = *components = 0;
+    for (size_t v = 0; v < nv; v++) {
+        *boundary += sum[v] != 0;
+        *components += used[v] && root[v] == v;
+    }
+    free(sum);
+    free(root);
+    return TESSEL_OK;
+}

@@ -176,20 +176,40 @@ static tessel_status gather_tiles(const ranks *r, const tsl_gp_tiles_job *job)
     free(counts);
     if ((mine = agree(r->comm, mine)) != TESSEL_OK)
         return mine;
+    /* Each tile's fates, packed in the tile's order of points. */
+    size_t most = 0;
+    for (size_t k = 0; k < nt; k++) {
+        size_t m = job->cut->start[k + 1] - job->cut->start[k];
+        most = m > most ? m : most;
+    }
+    uint8_t *fate = tsl_alloc_array(most + 1, 1);
+    if ((mine = agree(r->comm, fate ? TESSEL_OK : TESSEL_ERR_NOMEM)) != TESSEL_OK) {
+        free(fate);
+        return mine;
+    }
     for (size_t k = 0; k < nt; k++) {
         int from = owner(r, k);
         gp_collect *c = &job->parts[k];
+        const uint32_t *ids = job->cut->ids + job->cut->start[k];
+        size_t m = job->cut->start[k + 1] - job->cut->start[k];
         if (from == 0)
             continue;
         if (r->rank == from) {
             send_array(r, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
             MPI_Send(&job->sums[k], (int)sizeof job->sums[k], MPI_BYTE, 0, 0, r->comm);
+            for (size_t i = 0; i < m; i++)
+                fate[i] = job->fate[ids[i]];
+            send_array(r, fate, m, MPI_BYTE, 1);
         } else if (r->rank == 0) {
             recv_array(r, from, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
             MPI_Recv(&job->sums[k], (int)sizeof job->sums[k], MPI_BYTE, from, 0, r->comm,
                      MPI_STATUS_IGNORE);
+            recv_array(r, from, fate, m, MPI_BYTE, 1);
+            for (size_t i = 0; i < m; i++)
+                job->fate[ids[i]] = fate[i];
         }
     }
+    free(fate);
     return TESSEL_OK;
 }
 
