@@ -160,7 +160,8 @@ static tessel_status import_mesh(af *s, const uint32_t *tri, size_t count, const
  * the rest oriented against each other. */
 static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, size_t nt,
                                  const uint32_t *ids, const float *dcut,
-                                 const uint8_t *cut_axis, double mean_nn, size_t small)
+                                 const uint8_t *cut_axis, double mean_nn, size_t small,
+                                 int threads)
 {
     size_t total = 0;
     for (size_t k = 0; k < nt; k++)
@@ -206,7 +207,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, si
     }
     if ((st = tsl_orient_tiles(tri, comp, count, ncomp, s->xyz, dcut, cut_axis,
                                band + TILE_VOTE_REACH * mean_nn,
-                               2.0 * band + TILE_PAIR_REACH * mean_nn, s->cell, small, drop)))
+                               2.0 * band + TILE_PAIR_REACH * mean_nn, small, threads, drop)))
         goto done;
     st = import_mesh(s, tri, count, comp, drop);
 done:
@@ -303,7 +304,8 @@ tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_
         s->stats.hole_triangles += tiles[k].stats.hole_triangles;
         s->stats.eroded_triangles += tiles[k].stats.eroded_triangles;
     }
-    st = place_tiles(s, tiles, range, nt, ids, dcut, cut.cut_axis, mean_nn, p->tile_points / 4);
+    st = place_tiles(s, tiles, range, nt, ids, dcut, cut.cut_axis, mean_nn, p->tile_points / 4,
+                     p->threads);
 done:
     if (tiles)
         for (size_t k = 0; k < nt; k++)

@@ -143,7 +143,8 @@ static void turn(uint32_t *v)
  * leaves out are dropped, their points marked in redo for the front that
  * closes the gap to mesh again. */
 static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, gp_collect *all,
-                                 double reach, double spacing, size_t small, uint8_t *redo)
+                                 double reach, double spacing, size_t small, int threads,
+                                 uint8_t *redo)
 {
     size_t count = all->count, ncomp = 0, band_tris = s->nt;
     uint32_t *comp = tsl_alloc_array(count + 1, sizeof *comp);
@@ -166,7 +167,7 @@ static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, g
     memcpy(saved, all->tris, 3 * band_tris * sizeof *saved);
     st = tsl_orient_tiles(all->tris, comp, count, ncomp, c->xyz, dcut, axis,
                           reach + SWEEP_VOTE_REACH * spacing,
-                          2.0 * reach + SWEEP_PAIR_REACH * spacing, 2.0 * spacing, small, drop);
+                          2.0 * reach + SWEEP_PAIR_REACH * spacing, small, threads, drop);
     if (st)
         goto done;
     /* Components are numbered by their first triangle: the band's come
@@ -486,7 +487,8 @@ tessel_status tsl_gp_slabs_step(tsl_gp_slabs *s, const tessel_cloud *slab, const
             all.count = need;
         }
         if (!st)
-            st = orient_slab(s, &c, &all, reach, spacing, params->tile_points / 4, redo);
+            st = orient_slab(s, &c, &all, reach, spacing, params->tile_points / 4,
+                                 params->threads, redo);
     }
     size_t flips = 0;
     if (!st && s->np)

@@ -78,7 +78,7 @@ static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, 
  * dropped, their points flagged in seed: the front that closes the seams
  * meshes them again. */
 static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, const tsl_tiles *cut,
-                                  double band, double spacing, size_t tile_points,
+                                  double band, double spacing, size_t tile_points, int threads,
                                   uint8_t *seed)
 {
     size_t count = all->count, ncomp = 0;
@@ -94,8 +94,8 @@ static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, co
     }
     st = tsl_orient_tiles(all->tris, comp, count, ncomp, cloud->xyz, cut->dcut, cut->cut_axis,
                           band + TILE_VOTE_REACH * spacing,
-                          2.0 * band + TILE_PAIR_REACH * spacing, 2.0 * spacing,
-                          tile_points / 4, drop);
+                          2.0 * band + TILE_PAIR_REACH * spacing, tile_points / 4, threads,
+                          drop);
     if (st)
         goto done;
     size_t w = 0;
@@ -271,7 +271,8 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         goto done;
     memcpy(seed, touched, n);
     if ((st = tsl_single_fans(n, all->tris, &all->count, touched)) ||
-        (st = orient_tiles(cloud, all, &cut, reach, spacing, params->tile_points, seed)))
+        (st = orient_tiles(cloud, all, &cut, reach, spacing, params->tile_points,
+                                  params->threads, seed)))
         goto done;
     /* The seams: a front over the points of the bands, and those near a
      * dropped triangle or a border of the tiles' mesh (a second look there,

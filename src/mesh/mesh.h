@@ -108,15 +108,14 @@ tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv,
  * wrong one cannot override them. Reversed components get their triangles
  * turned. drop[c] (ncomp bytes) is set for components to leave to the
  * front that closes the seams: those whose pairs contradict the forest,
- * and those under `small` triangles at a cut. cell: the grid cell for the
- * centroids (about a mean spacing). cut_axis[v]: the axis the cut nearest
+ * and those under `small` triangles at a cut. cut_axis[v]: the axis the cut nearest
  * point v runs across; a triangle whose plane meets its nearest cut at an
  * angle theta searches radius / sin(theta) (at most 4 radius): a gap of a
  * given width along the axis is that much wider along a surface that
  * meets the cut at a shallow angle. */
 tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count, size_t ncomp,
                                const float *xyz, const float *dcut, const uint8_t *cut_axis,
-                               double near, double radius, double cell, size_t small,
+                               double near, double radius, size_t small, int threads,
                                uint8_t *drop);
 
 /* ---- checked local edits (mesh/edit.c, flip.c, split.c) ---- */

@@ -83,8 +83,8 @@ static void spanning_parity(const tile_pair *pairs, size_t np, size_t ncomp, con
 
 tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count,
                                   size_t ncomp, const float *xyz, const float *dcut,
-                                  const uint8_t *cut_axis, double near, double radius, double cell,
-                                  size_t small, uint8_t *drop)
+                                  const uint8_t *cut_axis, double near, double radius, size_t small,
+                                  int threads, uint8_t *drop)
 {
     size_t nl = 0;
     for (size_t t = 0; t < count; t++) {
@@ -94,6 +94,7 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
     uint32_t *list = tsl_alloc_array(nl + 1, sizeof *list);
     double *geo = tsl_alloc_array(7 * nl + 1, sizeof *geo); /* centroid, normal, radius */
     tile_pair *pairs = tsl_alloc_array(nl + 1, sizeof *pairs);
+    uint32_t *best_of = tsl_alloc_array(nl + 1, sizeof *best_of);
     uint32_t *up = tsl_alloc_array(ncomp + 1, sizeof *up);
     uint8_t *rel = tsl_calloc_array(ncomp + 1, sizeof *rel);
     size_t *size = tsl_calloc_array(ncomp + 1, sizeof *size);
@@ -102,7 +103,7 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
     tsl_trigrid grid;
     memset(&grid, 0, sizeof grid);
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!list || !geo || !pairs || !up || !rel || !size || !total || !agree)
+    if (!list || !geo || !pairs || !best_of || !up || !rel || !size || !total || !agree)
         goto done;
     memset(drop, 0, ncomp);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -128,46 +129,71 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
         }
         list[nl++] = (uint32_t)t;
     }
-    if ((st = tsl_trigrid_init(&grid, lo, hi, cell)))
+    /* Cells of half the radius: a query meets a few cells (with cells of a
+     * spacing, tens of thousands at the widest: most of the time went to
+     * the empty ones). */
+    if ((st = tsl_trigrid_init(&grid, lo, hi, 0.5 * radius)))
         goto done;
     for (size_t i = 0; i < nl; i++)
         if ((st = tsl_trigrid_insert(&grid, (uint32_t)i, geo + 7 * i, geo + 7 * i)))
             goto done;
-    size_t np = 0;
-    for (size_t i = 0; i < nl; i++) {
-        const double *g = geo + 7 * i;
-        double blo[3], bhi[3];
-        for (int c = 0; c < 3; c++) {
-            blo[c] = g[c] - g[6];
-            bhi[c] = g[c] + g[6];
-        }
-        if ((st = tsl_trigrid_query(&grid, blo, bhi)))
-            goto done;
-        double best = g[6] * g[6];
-        uint32_t best_j = TESSEL_NONE;
-        for (size_t f = 0; f < grid.hits.count; f++) {
-            uint32_t j = grid.hits.found[f];
-            if (comp[list[j]] == comp[list[i]])
+    /* Each triangle's partner: the nearest centroid of another component,
+     * along the surface (in parallel, each query with its own result). */
+    bool nomem = false;
+    ptrdiff_t count_l = (ptrdiff_t)nl;
+#pragma omp parallel num_threads(tsl_threads(threads)) reduction(|| : nomem)
+    {
+        tsl_trigrid_hits hits;
+        memset(&hits, 0, sizeof hits);
+#pragma omp for schedule(dynamic, 1024)
+        for (ptrdiff_t ii = 0; ii < count_l; ii++) {
+            size_t i = (size_t)ii;
+            const double *g = geo + 7 * i;
+            double blo[3], bhi[3];
+            for (int c = 0; c < 3; c++) {
+                blo[c] = g[c] - g[6];
+                bhi[c] = g[c] + g[6];
+            }
+            best_of[i] = TESSEL_NONE;
+            if (nomem || tsl_trigrid_hits_begin(&hits) ||
+                tsl_trigrid_collect(&grid, blo, bhi, &hits)) {
+                nomem = true;
                 continue;
-            double d[3], h;
-            tsl_sub(geo + 7 * (size_t)j, g, d);
-            double d2 = tsl_dot(d, d);
-            /* Only along the surface: the other side of a thin part lies
-             * off the tangent plane and faces the other way. */
-            h = tsl_dot(d, g + 3);
-            if (4.0 * h * h > d2)
-                continue;
-            if (d2 < best || (d2 == best && j < best_j)) {
-                best = d2;
-                best_j = j;
+            }
+            double best = g[6] * g[6];
+            for (size_t f = 0; f < hits.count; f++) {
+                uint32_t j = hits.found[f];
+                if (comp[list[j]] == comp[list[i]])
+                    continue;
+                double d[3], h;
+                tsl_sub(geo + 7 * (size_t)j, g, d);
+                double d2 = tsl_dot(d, d);
+                /* Only along the surface: the other side of a thin part
+                 * lies off the tangent plane and faces the other way. */
+                h = tsl_dot(d, g + 3);
+                if (4.0 * h * h > d2)
+                    continue;
+                if (d2 < best || (d2 == best && j < best_of[i])) {
+                    best = d2;
+                    best_of[i] = j;
+                }
             }
         }
-        if (best_j == TESSEL_NONE)
+        tsl_trigrid_hits_free(&hits);
+    }
+    if (nomem) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    size_t np = 0;
+    for (size_t i = 0; i < nl; i++) {
+        uint32_t j = best_of[i];
+        if (j == TESSEL_NONE)
             continue;
-        uint32_t ca = comp[list[i]], cb = comp[list[best_j]];
+        uint32_t ca = comp[list[i]], cb = comp[list[j]];
         pairs[np].a = ca < cb ? ca : cb;
         pairs[np].b = ca < cb ? cb : ca;
-        pairs[np].w = tsl_dot(g + 3, geo + 7 * (size_t)best_j + 3);
+        pairs[np].w = tsl_dot(geo + 7 * i + 3, geo + 7 * (size_t)j + 3);
         np++;
     }
     qsort(pairs, np, sizeof *pairs, cmp_pair_ids);
@@ -228,6 +254,7 @@ done:
     free(list);
     free(geo);
     free(pairs);
+    free(best_of);
     free(up);
     free(rel);
     free(size);
