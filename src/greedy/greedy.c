@@ -26,6 +26,8 @@
  * docs/greedy.md. */
 #include "greedy/greedy.h"
 
+#include "core/grid.h"
+
 #include <float.h>
 #include <math.h>
 #include <stdlib.h>
@@ -1262,6 +1264,85 @@ bool tsl_gp_tiled(const tessel_cloud *cloud, const tessel_greedy_params *params)
            !p.existing_count && p.tile_points && cloud->count > p.tile_points;
 }
 
+tessel_status tsl_gp_space_order(const tessel_cloud *cloud, int threads, tessel_cloud *sorted,
+                                 uint32_t **perm)
+{
+    memset(sorted, 0, sizeof *sorted);
+    *perm = NULL;
+    size_t n = cloud->count;
+    tsl_grid g;
+    tessel_status st = tsl_grid_build(&g, cloud->xyz, n, tsl_grid_knn_cell(cloud->xyz, n, 16),
+                                      tsl_threads(threads));
+    if (st)
+        return st;
+    float *normals = cloud->normals ? tsl_alloc_array(n, 3 * sizeof *normals) : NULL;
+    if (cloud->normals && !normals) {
+        tsl_grid_free(&g);
+        return TESSEL_ERR_NOMEM;
+    }
+    for (size_t i = 0; normals && i < n; i++)
+        memcpy(normals + 3 * i, cloud->normals + 3 * (size_t)g.perm[i], 3 * sizeof *normals);
+    sorted->count = n;
+    sorted->xyz = g.sxyz;
+    sorted->normals = normals;
+    memcpy(sorted->offset, cloud->offset, sizeof sorted->offset);
+    memcpy(sorted->viewpoint, cloud->viewpoint, sizeof sorted->viewpoint);
+    sorted->has_viewpoint = cloud->has_viewpoint;
+    *perm = g.perm;
+    g.sxyz = NULL;
+    g.perm = NULL;
+    tsl_grid_free(&g);
+    return TESSEL_OK;
+}
+
+/* A sink that names the points of the cloud in space order by their
+ * indices in the caller's. */
+typedef struct perm_sink {
+    const tessel_triangle_sink *to;
+    const uint32_t *perm;
+} perm_sink;
+
+static tessel_status perm_emit(void *user, const uint32_t *tris, size_t count)
+{
+    const perm_sink *ps = user;
+    uint32_t buf[3 * 1024];
+    for (size_t t = 0; t < count; t += 1024) {
+        size_t m = count - t < 1024 ? count - t : 1024;
+        for (size_t i = 0; i < 3 * m; i++)
+            buf[i] = ps->perm[tris[3 * t + i]];
+        tessel_status st = ps->to->emit(ps->to->user_data, buf, m);
+        if (st)
+            return st;
+    }
+    return TESSEL_OK;
+}
+
+/* Tiled clouds are meshed with their points in space order (cells of a
+ * few spacings in Morton order): the passes over the whole mesh read
+ * per-point arrays through the triangles, and a cloud in random order
+ * (a sample, a merge of scans) made nearly every such read a cache miss
+ * (10^7 points: 82 -> 67 s). The triangles go out in the caller's
+ * indices. */
+static tessel_status held_in_space_order(const tessel_cloud *cloud,
+                                         const tessel_greedy_params *params, bool check,
+                                         const tsl_gp_tile_runner *runner,
+                                         const tessel_callbacks *callbacks,
+                                         const tessel_triangle_sink *sink,
+                                         tessel_recon_summary *summary)
+{
+    tessel_cloud sorted;
+    uint32_t *perm;
+    tessel_status st = tsl_gp_space_order(cloud, params->threads, &sorted, &perm);
+    if (st)
+        return st;
+    perm_sink ps = {sink, perm};
+    tessel_triangle_sink out = {perm_emit, &ps};
+    st = tsl_gp_held(&sorted, params, check, runner, callbacks, &out, summary);
+    tessel_cloud_free(&sorted);
+    free(perm);
+    return st;
+}
+
 tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
                                           const tessel_greedy_params *params,
                                           const tsl_gp_tile_runner *runner,
@@ -1285,7 +1366,9 @@ tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
     bool check = p.orient_check && !p.existing_count;
     p.flip = p.flip && !p.existing_count;
     tessel_status s;
-    if (check || p.flip)
+    if ((check || p.flip) && tsl_gp_tiled(cloud, &p))
+        s = held_in_space_order(cloud, &p, check, runner, callbacks, sink, &sum);
+    else if (check || p.flip)
         s = tsl_gp_held(cloud, &p, check, runner, callbacks, sink, &sum);
     else
         s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, NULL, &sum);

@@ -448,13 +448,20 @@ typedef struct tsl_gp_tile_runner {
     void *ctx;
 } tsl_gp_tile_runner;
 
+/* The cloud's points in space order (cells of a few spacings in Morton
+ * order; the same for any thread count) into *sorted (positions, normals,
+ * offset, viewpoint), with (*perm)[i] the caller's index of point i. */
+tessel_status tsl_gp_space_order(const tessel_cloud *cloud, int threads, tessel_cloud *sorted,
+                                 uint32_t **perm);
+
 /* Whether tessel_reconstruct_greedy cuts cloud into tiles with params
  * (valid, held mode, no existing triangles, more than tile_points points). */
 bool tsl_gp_tiled(const tessel_cloud *cloud, const tessel_greedy_params *params);
 
 /* What a process that only meshes tiles for another does: the same tiles
- * as tsl_gp_tiled_pass cuts, handed to runner (which meshes its share and
- * sends it on); nothing is kept. */
+ * as tsl_gp_tiled_pass cuts (of the cloud in space order, as
+ * tessel_reconstruct_greedy meshes a tiled cloud), handed to runner (which
+ * meshes its share and sends it on); nothing is kept. */
 tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks);

@@ -221,11 +221,18 @@ tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_p
     tsl_tiles cut = {0};
     gp_collect *parts = NULL;
     tessel_recon_summary *sums = NULL;
+    tessel_cloud sorted;
+    uint32_t *perm;
+    tessel_status st = tsl_gp_space_order(cloud, params->threads, &sorted, &perm);
+    if (st)
+        return st;
     uint8_t *fate = tsl_alloc_array(cloud->count + 1, 1);
-    tessel_status st = fate ? mesh_tiles(cloud, params, runner, callbacks, &cut, &parts, &sums, fate)
-                            : TESSEL_ERR_NOMEM;
+    st = fate ? mesh_tiles(&sorted, params, runner, callbacks, &cut, &parts, &sums, fate)
+              : TESSEL_ERR_NOMEM;
     free_tiles(&cut, parts, sums);
     free(fate);
+    tessel_cloud_free(&sorted);
+    free(perm);
     return st;
 }
 
