@@ -809,7 +809,7 @@ static void test_flip_diagonals(void)
     const float xyz[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0, 100, 100, 100};
     uint32_t tri[6] = {0, 1, 2, 0, 2, 3};
     size_t flips = 0;
-    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, 1, &flips) == TESSEL_OK);
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, NULL, 1, &flips) == TESSEL_OK);
     CHECK(flips == 1);
     bool has13[2] = {false, false};
     for (int t = 0; t < 2; t++)
@@ -819,12 +819,12 @@ static void test_flip_diagonals(void)
         }
     CHECK(has13[0] && has13[1]);
     /* Flipping again changes nothing: the pair is Delaunay now. */
-    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, 1, &flips) == TESSEL_OK && flips == 0);
+    CHECK(tsl_flip_diagonals(xyz, 5, tri, 2, NULL, 1, &flips) == TESSEL_OK && flips == 0);
     /* The same rhombus with its points stored in another order (the flips
      * number the vertices afresh inside and must give the ids back). */
     const float shuffled[] = {100, 100, 100, 1, 1, 0, 3, 1, 0, 0, 0, 0, 2, 0, 0};
     uint32_t st[6] = {3, 4, 2, 3, 2, 1}; /* 0 -> 3, 1 -> 4, 2 -> 2, 3 -> 1 */
-    CHECK(tsl_flip_diagonals(shuffled, 5, st, 2, 1, &flips) == TESSEL_OK && flips == 1);
+    CHECK(tsl_flip_diagonals(shuffled, 5, st, 2, NULL, 1, &flips) == TESSEL_OK && flips == 1);
     for (int t = 0; t < 2; t++) {
         bool has41 = false;
         for (int i = 0; i < 3; i++) {
@@ -840,9 +840,17 @@ static void test_flip_diagonals(void)
     const float lifted[] = {0, 0, 0, 2, 0, 0, 3, 1, 0, 1, 1, 0.3f,
                             1.5f, 0.5f, 0.075f, 1.5f, 0.5f, 5, 1.6f, 0.6f, 5};
     uint32_t lt[9] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
-    CHECK(tsl_flip_diagonals(lifted, 7, lt, 3, 1, &flips) == TESSEL_OK && flips == 0);
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 3, NULL, 1, &flips) == TESSEL_OK && flips == 0);
     CHECK(memcmp(lt, (uint32_t[]){0, 1, 2, 0, 2, 3, 4, 5, 6}, sizeof lt) == 0);
-    CHECK(tsl_flip_diagonals(lifted, 7, lt, 2, 1, &flips) == TESSEL_OK && flips == 1);
+    /* A fixed triangle keeps its edges, and still forbids a flip it would
+     * meet. */
+    uint32_t ft[9] = {0, 1, 2, 0, 2, 3, 4, 5, 6};
+    CHECK(tsl_flip_diagonals(lifted, 7, ft, 3, (const uint8_t[]){0, 0, 1}, 1, &flips) ==
+              TESSEL_OK &&
+          flips == 0);
+    CHECK(tsl_flip_diagonals(lifted, 7, ft, 2, (const uint8_t[]){0, 1}, 1, &flips) == TESSEL_OK &&
+          flips == 0);
+    CHECK(tsl_flip_diagonals(lifted, 7, lt, 2, NULL, 1, &flips) == TESSEL_OK && flips == 1);
     /* Two fans at vertex 0 (a bow tie), an edge in three triangles, an edge
      * run twice the same way, a bad index. */
     const float six[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, -1, 0, 0, 0, -1, 0, 0, 0, 1};
@@ -850,11 +858,11 @@ static void test_flip_diagonals(void)
     uint32_t three[9] = {0, 1, 2, 1, 0, 3, 1, 0, 4};
     uint32_t same_way[6] = {0, 1, 2, 0, 1, 3};
     uint32_t bad[3] = {0, 1, 6};
-    CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, bowtie, 2, NULL, 1, &flips) == TESSEL_ERR_INVALID_ARG);
     CHECK(memcmp(bowtie, (uint32_t[]){0, 1, 2, 0, 3, 4}, sizeof bowtie) == 0);
-    CHECK(tsl_flip_diagonals(six, 6, three, 3, 1, &flips) == TESSEL_ERR_INVALID_ARG);
-    CHECK(tsl_flip_diagonals(six, 6, same_way, 2, 1, &flips) == TESSEL_ERR_INVALID_ARG);
-    CHECK(tsl_flip_diagonals(six, 6, bad, 1, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, three, 3, NULL, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, same_way, 2, NULL, 1, &flips) == TESSEL_ERR_INVALID_ARG);
+    CHECK(tsl_flip_diagonals(six, 6, bad, 1, NULL, 1, &flips) == TESSEL_ERR_INVALID_ARG);
 }
 
 /* Flips tri (nt triangles over xyz) on one thread, and a copy on two: both
@@ -867,8 +875,8 @@ static size_t flips_one_and_two(const float *xyz, size_t nv, uint32_t *tri, size
         return 0;
     memcpy(two, tri, 3 * nt * sizeof *tri);
     size_t flips1 = 0, flips2 = 0;
-    CHECK(tsl_flip_diagonals(xyz, nv, tri, nt, 1, &flips1) == TESSEL_OK);
-    CHECK(tsl_flip_diagonals(xyz, nv, two, nt, 2, &flips2) == TESSEL_OK);
+    CHECK(tsl_flip_diagonals(xyz, nv, tri, nt, NULL, 1, &flips1) == TESSEL_OK);
+    CHECK(tsl_flip_diagonals(xyz, nv, two, nt, NULL, 2, &flips2) == TESSEL_OK);
     CHECK_MSG(flips1 == flips2 && memcmp(tri, two, 3 * nt * sizeof *tri) == 0,
               "%zu and %zu flips", flips1, flips2);
     free(two);

@@ -474,12 +474,13 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
 /* The first pass in tiles of at most params->tile_points points, meshed
  * by runner, then the seams closed by a local pass over the points near
  * the cuts; the triangles into *all (held), every point's FATE_* into
- * fate. The summary's counts of the mesh (points used, left out,
- * boundary, components) are left to the caller. */
+ * fate, the points near the seams (whose triangles are not flipped yet)
+ * flagged in dirty. The summary's counts of the mesh (points used, left
+ * out, boundary, components) are left to the caller. */
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, gp_collect *all,
-                                uint8_t *fate, tessel_recon_summary *summary);
+                                uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary);
 
 /* ---- slabs.c ---- */
 

@@ -216,10 +216,11 @@ static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *f
  * the sampling (two spheres touching), that front can join them through a
  * hole, or it can leave a piece cut off: a repair that changes the number
  * of components, or leaves more boundary edges, is undone. summary holds
- * the counts of the mesh before and after. */
+ * the counts of the mesh before and after; the points of a repair kept are
+ * flagged in dirty. */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
-                                  uint8_t *fate, tessel_recon_summary *summary)
+                                  uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary)
 {
     if (params->max_hole < 3)
         return TESSEL_OK;
@@ -267,6 +268,9 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             memcpy(fate, saved_fate, n);
             all->count = before_count;
             *summary = before;
+        } else {
+            for (size_t i = 0; i < n; i++)
+                dirty[i] |= sel[i];
         }
     }
     free(hole);
@@ -277,6 +281,57 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
     return s;
 }
 
+/* Step 2 after tiles: the tiles flipped their own triangles, so only
+ * those at dirty points (near the seams and repairs) are flipped, in the
+ * part of the mesh within twice its longest edge of them (every triangle a
+ * flip there could meet; the rest fixed: tsl_flip_diagonals). */
+static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, const uint8_t *dirty,
+                                int threads, size_t *flips)
+{
+    size_t n = cloud->count, nt = all->count, m = 0;
+    double longest = 0.0;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            double p[3], q[3], d[3];
+            tsl_load(cloud->xyz + 3 * (size_t)all->tris[3 * t + (size_t)k], p);
+            tsl_load(cloud->xyz + 3 * (size_t)all->tris[3 * t + (size_t)(k + 1) % 3], q);
+            tsl_sub(q, p, d);
+            longest = fmax(longest, tsl_dot(d, d));
+        }
+    uint8_t *near = tsl_alloc_array(n + 1, 1);
+    if (!near)
+        return TESSEL_ERR_NOMEM;
+    memcpy(near, dirty, n);
+    tessel_status s = tsl_gp_select_near(cloud->xyz, n, dirty, 2.0 * sqrt(longest), near);
+    for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
+        const uint32_t *v = all->tris + 3 * t;
+        m += near[v[0]] || near[v[1]] || near[v[2]];
+    }
+    uint32_t *part = tsl_alloc_array(3 * m + 1, sizeof *part);
+    uint32_t *at = tsl_alloc_array(m + 1, sizeof *at);
+    uint8_t *fixed = tsl_alloc_array(m + 1, 1);
+    if (s == TESSEL_OK && (!part || !at || !fixed))
+        s = TESSEL_ERR_NOMEM;
+    m = 0;
+    for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
+        const uint32_t *v = all->tris + 3 * t;
+        if (!(near[v[0]] || near[v[1]] || near[v[2]]))
+            continue;
+        memcpy(part + 3 * m, v, 3 * sizeof *v);
+        fixed[m] = !(dirty[v[0]] && dirty[v[1]] && dirty[v[2]]);
+        at[m++] = (uint32_t)t;
+    }
+    if (s == TESSEL_OK)
+        s = tsl_flip_diagonals(cloud->xyz, n, part, m, fixed, threads, flips);
+    for (size_t i = 0; s == TESSEL_OK && i < m; i++)
+        memcpy(all->tris + 3 * (size_t)at[i], part + 3 * i, 3 * sizeof *part);
+    free(near);
+    free(part);
+    free(at);
+    free(fixed);
+    return s;
+}
+
 tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           bool check, const tsl_gp_tile_runner *runner,
                           const tessel_callbacks *callbacks,
@@ -284,26 +339,33 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
 {
     gp_collect all = {NULL, 0, 0};
     tessel_triangle_sink hold = {tsl_gp_collect_emit, &all};
-    uint8_t *fate = tsl_alloc_array(cloud->count + 1, 1);
-    tessel_status s = !fate ? TESSEL_ERR_NOMEM
-                      : params->tile_points && cloud->count > params->tile_points &&
-                              !params->existing_count
-                          ? tsl_gp_tiled_pass(cloud, params, runner, callbacks, &all, fate, summary)
-                          : tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, fate, summary);
-    if (s == TESSEL_OK && check)
+    size_t n = cloud->count;
+    uint8_t *fate = tsl_alloc_array(n + 1, 1), *dirty = tsl_calloc_array(n + 1, 1);
+    bool tiled = params->tile_points && n > params->tile_points && !params->existing_count;
+    tessel_status s = !fate || !dirty ? TESSEL_ERR_NOMEM
+                      : tiled ? tsl_gp_tiled_pass(cloud, params, runner, callbacks, &all, fate,
+                                                  dirty, summary)
+                              : tsl_gp_pass(cloud, params, "greedy", callbacks, &hold, fate, summary);
+    /* One front flipped nothing yet; nor did a repair of the orientation. */
+    bool all_dirty = !tiled;
+    if (s == TESSEL_OK && check) {
+        size_t before = summary->reoriented;
         s = check_and_repair(cloud, params, callbacks, &all, fate, summary);
+        all_dirty = all_dirty || summary->reoriented != before;
+    }
     if (s == TESSEL_OK)
-        s = summarize(cloud->count, &all, fate, summary);
+        s = summarize(n, &all, fate, summary);
     if (s == TESSEL_OK)
-        s = reopen_holes(cloud, params, callbacks, &all, fate, summary);
+        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, summary);
     if (s == TESSEL_OK && params->flip) {
         /* Added to the tiles' flips, when there were tiles. The flips
          * change no count of the summary. */
         size_t flips = 0;
         s = tsl_progress(callbacks, "diagonal flips", 0.0);
         if (s == TESSEL_OK)
-            s = tsl_flip_diagonals(cloud->xyz, cloud->count, all.tris, all.count, params->threads,
-                                   &flips);
+            s = all_dirty ? tsl_flip_diagonals(cloud->xyz, n, all.tris, all.count, NULL,
+                                               params->threads, &flips)
+                          : flip_dirty(cloud, &all, dirty, params->threads, &flips);
         if (s == TESSEL_OK)
             s = tsl_progress(callbacks, "diagonal flips", 1.0);
         summary->flips += flips;
@@ -311,10 +373,11 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
     if (s == TESSEL_OK && all.count > summary->peak_held_triangles)
         summary->peak_held_triangles = all.count;
     for (size_t t = 0; s == TESSEL_OK && t < all.count; t += OUT_BATCH) {
-        size_t n = all.count - t < OUT_BATCH ? all.count - t : OUT_BATCH;
-        s = sink->emit(sink->user_data, all.tris + 3 * t, n);
+        size_t m = all.count - t < OUT_BATCH ? all.count - t : OUT_BATCH;
+        s = sink->emit(sink->user_data, all.tris + 3 * t, m);
     }
     free(all.tris);
     free(fate);
+    free(dirty);
     return s;
 }

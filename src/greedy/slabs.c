@@ -229,7 +229,7 @@ static tessel_status flip_free(const tessel_cloud *c, const uint8_t *frozen, gp_
             at[j++] = at[i];
     m = kept;
     if (!st)
-        st = tsl_flip_diagonals(c->xyz, c->count, movable, m, threads, flips);
+        st = tsl_flip_diagonals(c->xyz, c->count, movable, m, NULL, threads, flips);
     for (size_t i = 0; !st && i < m; i++)
         memcpy(all->tris + 3 * at[i], movable + 3 * i, 3 * sizeof *movable);
     free(movable);

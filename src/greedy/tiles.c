@@ -138,7 +138,7 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
     /* The tile's flips here, on one thread, leave the pass over the whole
      * mesh only the seams and repairs to flip. */
     if (st == TESSEL_OK && job->params->flip)
-        st = tsl_flip_diagonals(sub.xyz, sub.count, out->tris, out->count, 1,
+        st = tsl_flip_diagonals(sub.xyz, sub.count, out->tris, out->count, NULL, 1,
                                 &job->sums[k].flips);
     tessel_cloud_free(&sub);
     for (size_t i = 0; st == TESSEL_OK && i < 3 * out->count; i++)
@@ -239,7 +239,7 @@ tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_p
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, gp_collect *all,
-                                uint8_t *fate, tessel_recon_summary *summary)
+                                uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary)
 {
     tsl_tiles cut = {0};
     gp_collect *parts = NULL;
@@ -312,6 +312,8 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     summary->mu = mu;
     summary->tiles = nt;
     st = tsl_gp_local_pass(cloud, sel, &sp, "greedy: seams", callbacks, all, fate, summary);
+    for (size_t i = 0; i < n; i++)
+        dirty[i] |= sel[i];
 done:
     free_tiles(&cut, parts, sums);
     free(touched);

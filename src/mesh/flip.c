@@ -107,6 +107,10 @@ static tessel_status flip_edge(tsl_edit *r, tsl_edit_worker *w, uint32_t h, bool
     if (r->delaunay ? !opposite_angles_over_pi(pu, pv, pa, pb)
                     : !other_diagonal_shorter(pu, pv, pa, pb))
         return TESSEL_OK;
+    double ab[3];
+    tsl_sub(pb, pa, ab);
+    if (r->max_edge2 > 0.0 && tsl_dot(ab, ab) > r->max_edge2)
+        return TESSEL_OK;
     *again = true;
     if (r->edges.slot && !w->parallel ? tsl_edge_map_get(&r->edges, a, b) != NONE
                                       : tsl_edit_edge_exists(r, 3 * T1 + (i + 2) % 3, b))
@@ -323,7 +327,11 @@ tessel_status tsl_edit_flips(tsl_edit *r, int threads)
             if (!look[h])
                 continue;
             uint32_t g = r->twin[h];
-            look[h] = g != NONE && g > (uint32_t)h && rule_holds(r, (uint32_t)h) ? 2 : 0;
+            look[h] = g != NONE && g > (uint32_t)h &&
+                              !(r->fixed && (r->fixed[h / 3] || r->fixed[g / 3])) &&
+                              rule_holds(r, (uint32_t)h)
+                          ? 2
+                          : 0;
         }
         memset(start, 0, (8 * (size_t)b.count + 1) * sizeof *start);
         for (size_t h = 0; h < nh && !st; h++) {
@@ -390,6 +398,21 @@ done:
     return st;
 }
 
+/* The square of the longest edge of the nt triangles tri over xyz. */
+static double longest_edge2(const float *xyz, const uint32_t *tri, size_t nt)
+{
+    double most = 0.0;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            double p[3], q[3], d[3];
+            tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)k], p);
+            tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)(k + 1) % 3], q);
+            tsl_sub(q, p, d);
+            most = fmax(most, tsl_dot(d, d));
+        }
+    return most;
+}
+
 /* Numbers the vertices tri uses 0, 1, ... in order of first use: tri is
  * rewritten, (*local)[3 i ..] receives the position of the vertex now
  * numbered i, (*back)[i] its old number; *used of them. */
@@ -430,8 +453,8 @@ static tessel_status renumber(const float *xyz, size_t nv, uint32_t *tri, size_t
     return TESSEL_OK;
 }
 
-tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt, int threads,
-                                 size_t *flips)
+tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
+                                 const uint8_t *fixed, int threads, size_t *flips)
 {
     *flips = 0;
     if (nv >= UINT32_MAX || nt >= UINT32_MAX / 3)
@@ -462,11 +485,19 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     r.tri = tri;
     r.nt = r.cap_t = nt;
     r.delaunay = true;
+    r.fixed = fixed;
     r.twin = tsl_alloc_array(3 * nt, sizeof *r.twin);
     r.box = tsl_alloc_array(6 * nt, sizeof *r.box);
+    /* With fixed triangles, vertices at the part's rim may have several
+     * fans: only flips at vertices of flippable triangles walk fans. */
+    uint8_t *rim = fixed ? tsl_alloc_array(used + 1, 1) : NULL;
     st = TESSEL_ERR_NOMEM;
-    if (r.twin && r.box && !(st = tsl_edit_twins(&r, 0, NULL)) && !(st = tsl_edit_grid(&r)))
+    if (fixed)
+        r.max_edge2 = longest_edge2(local, tri, nt);
+    if (r.twin && r.box && (!fixed || rim) && !(st = tsl_edit_twins(&r, 0, rim)) &&
+        !(st = tsl_edit_grid(&r)))
         st = tsl_edit_flips(&r, threads);
+    free(rim);
     for (size_t i = 0; i < 3 * nt; i++)
         tri[i] = back[tri[i]];
     free(back);

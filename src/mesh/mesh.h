@@ -196,6 +196,10 @@ typedef struct tsl_edit {
     tsl_trigrid grid;
     double cos_turn;
     bool delaunay; /* the flip rule: see flip_edge */
+    /* Flips only: fixed[t] (NULL: none) keeps triangle t's edges, and no
+     * new diagonal may be longer than sqrt(max_edge2) (0: any). */
+    const uint8_t *fixed;
+    double max_edge2;
     tsl_edit_counts counts;
     double lo[3], hi[3]; /* the triangles' box when the grid was built */
     struct tsl_edit_worker *serial; /* the checks and edits outside parallel phases */
@@ -260,9 +264,16 @@ static inline uint32_t tsl_he_to(const tsl_edit *e, uint32_t h)
  * (exact). tri (nt triangles over the points xyz, nv of them) must be
  * manifold and consistently oriented; the triangles keep their slots.
  * threads: 0 = OpenMP default; the result is the same for any count.
- * *flips: the diagonals flipped. */
+ * *flips: the diagonals flipped.
+ *
+ * fixed (NULL: none): triangles t with fixed[t] keep their edges; the
+ * checks see them, and their vertices may have several fans (a part of a
+ * larger mesh, cut around the triangles to flip). New diagonals are then
+ * no longer than the longest edge of tri: a part that holds every
+ * triangle within twice that of the flippable ones' vertices holds every
+ * triangle a flip could meet. */
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
-                                 int threads, size_t *flips);
+                                 const uint8_t *fixed, int threads, size_t *flips);
 
 /* Removes the triangles (tri[3 i ..], *count of them, consistently
  * oriented, over n vertices) at every vertex with more than one fan, until
