@@ -411,19 +411,33 @@ tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count
 
 /* ---- local.c ---- */
 
+/* The cells (of half the radius) within radius of a point flagged in
+ * seed: a superset of the ball around each, up to about 1.9 radii. */
+typedef struct tsl_gp_near {
+    double lo[3], cell;
+    size_t dim[3];
+    uint8_t *near; /* per cell; NULL without a seed */
+} tsl_gp_near;
+tessel_status tsl_gp_near_build(const float *xyz, size_t n, const uint8_t *seed, double radius,
+                                tsl_gp_near *g);
+/* Whether the box [lo, hi] meets one of the cells. */
+bool tsl_gp_near_box(const tsl_gp_near *g, const double lo[3], const double hi[3]);
+void tsl_gp_near_free(tsl_gp_near *g);
+
 /* Flags in sel (n entries) every point within radius of a point flagged
- * in seed, and some points farther (up to about 3.5 radii: cells). */
+ * in seed, and some points farther (the cells of tsl_gp_near). */
 tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed, double radius,
                                  uint8_t *sel);
 
 /* A front over the points flagged in sel only (params checked; mu as
  * given), from the triangles of all among them (points with a triangle
- * beyond are frozen); its triangles appended to all, the selected points'
- * fate[] rewritten, its seeds, holes and refusals added to summary. */
+ * beyond are frozen); its triangles appended to all and their vertices
+ * flagged in made, the selected points' fate[] rewritten, its seeds,
+ * holes and refusals added to summary. */
 tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
                                 const tessel_greedy_params *params, const char *stage,
                                 const tessel_callbacks *callbacks, gp_collect *all,
-                                uint8_t *fate, tessel_recon_summary *summary);
+                                uint8_t *fate, uint8_t *made, tessel_recon_summary *summary);
 
 /* ---- tiles.c ---- */
 
@@ -474,8 +488,8 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
 /* The first pass in tiles of at most params->tile_points points, meshed
  * by runner, then the seams closed by a local pass over the points near
  * the cuts; the triangles into *all (held), every point's FATE_* into
- * fate, the points near the seams (whose triangles are not flipped yet)
- * flagged in dirty. The summary's counts of the mesh (points used, left
+ * fate, the vertices of the triangles that close the seams (not flipped
+ * yet) flagged in dirty. The summary's counts of the mesh (points used, left
  * out, boundary, components) are left to the caller. */
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                 const tsl_gp_tile_runner *runner,

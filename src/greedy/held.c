@@ -29,6 +29,10 @@
  * spheres of influence of the hole's vertices (local.c). */
 #define HOLE_CONTEXT 6.0
 
+/* The flips after tiles leave triangles with an edge over this many times
+ * the mean longest edge of those they look at as they are. */
+#define FLIP_LONG 3.0
+
 /* Flags the vertices of the triangles marked 2 (the rims to drop): only
  * they can be left with more than one fan. */
 static uint8_t *rim_vertices(const uint32_t *tri, size_t nt, const uint8_t *mark, size_t nv)
@@ -216,8 +220,8 @@ static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *f
  * the sampling (two spheres touching), that front can join them through a
  * hole, or it can leave a piece cut off: a repair that changes the number
  * of components, or leaves more boundary edges, is undone. summary holds
- * the counts of the mesh before and after; the points of a repair kept are
- * flagged in dirty. */
+ * the counts of the mesh before and after; the vertices of the new
+ * triangles are flagged in dirty (also when undone: a few more to look at). */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
                                   uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary)
@@ -258,7 +262,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             s = tsl_single_fans(n, all->tris, &all->count, touched);
         if (s == TESSEL_OK)
             s = tsl_gp_local_pass(cloud, sel, &hp, "greedy: hole repair", callbacks, all, fate,
-                                  summary);
+                                  dirty, summary);
         if (s == TESSEL_OK)
             s = summarize(n, all, fate, summary);
         /* Joined or split, or more open: undone. */
@@ -268,9 +272,6 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             memcpy(fate, saved_fate, n);
             all->count = before_count;
             *summary = before;
-        } else {
-            for (size_t i = 0; i < n; i++)
-                dirty[i] |= sel[i];
         }
     }
     free(hole);
@@ -281,31 +282,68 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
     return s;
 }
 
+/* The square of the longest edge of the triangles tri[3 t ..] with
+ * pick[t] (pick NULL: all). */
+static double longest_edge2(const float *xyz, const uint32_t *tri, size_t nt, const uint8_t *pick)
+{
+    double most = 0.0;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; pick && !pick[t] ? 0 : k < 3; k++) {
+            double p[3], q[3], d[3];
+            tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)k], p);
+            tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)(k + 1) % 3], q);
+            tsl_sub(q, p, d);
+            most = fmax(most, tsl_dot(d, d));
+        }
+    return most;
+}
+
 /* Step 2 after tiles: the tiles flipped their own triangles, so only
- * those at dirty points (near the seams and repairs) are flipped, in the
- * part of the mesh within twice its longest edge of them (every triangle a
- * flip there could meet; the rest fixed: tsl_flip_diagonals). */
+ * those with a vertex on a triangle made since (seams, repairs: dirty)
+ * are flipped, less those with an edge over FLIP_LONG mean edges (a few
+ * slivers at borders, which would widen the part below for all), in a
+ * part of the mesh that holds every triangle such a flip could meet (the
+ * rest fixed). tsl_flip_diagonals keeps new diagonals within the longest
+ * edge L of the triangles it flips, so a flip stays within L of each
+ * vertex of its pair: the part holds every triangle whose box meets the
+ * cells within L of those vertices. */
 static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, const uint8_t *dirty,
                                 int threads, size_t *flips)
 {
     size_t n = cloud->count, nt = all->count, m = 0;
-    double longest = 0.0;
-    for (size_t t = 0; t < nt; t++)
-        for (int k = 0; k < 3; k++) {
-            double p[3], q[3], d[3];
-            tsl_load(cloud->xyz + 3 * (size_t)all->tris[3 * t + (size_t)k], p);
-            tsl_load(cloud->xyz + 3 * (size_t)all->tris[3 * t + (size_t)(k + 1) % 3], q);
-            tsl_sub(q, p, d);
-            longest = fmax(longest, tsl_dot(d, d));
-        }
-    uint8_t *near = tsl_alloc_array(n + 1, 1);
-    if (!near)
-        return TESSEL_ERR_NOMEM;
-    memcpy(near, dirty, n);
-    tessel_status s = tsl_gp_select_near(cloud->xyz, n, dirty, 2.0 * sqrt(longest), near);
+    uint8_t *flip = tsl_alloc_array(nt + 1, 1), *seed = tsl_calloc_array(n + 1, 1);
+    tsl_gp_near near = {0};
+    tessel_status s = flip && seed ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    double sum = 0.0;
+    size_t count = 0;
     for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
         const uint32_t *v = all->tris + 3 * t;
-        m += near[v[0]] || near[v[1]] || near[v[2]];
+        flip[t] = dirty[v[0]] || dirty[v[1]] || dirty[v[2]];
+        if (flip[t]) {
+            sum += sqrt(longest_edge2(cloud->xyz, v, 1, NULL));
+            count++;
+        }
+    }
+    double cap = count ? FLIP_LONG * sum / (double)count : 0.0;
+    for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
+        const uint32_t *v = all->tris + 3 * t;
+        flip[t] = flip[t] && longest_edge2(cloud->xyz, v, 1, NULL) <= cap * cap;
+        if (flip[t])
+            seed[v[0]] = seed[v[1]] = seed[v[2]] = 1;
+    }
+    double l2 = s == TESSEL_OK ? longest_edge2(cloud->xyz, all->tris, nt, flip) : 0.0;
+    if (s == TESSEL_OK)
+        s = tsl_gp_near_build(cloud->xyz, n, seed, sqrt(l2), &near);
+    for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (int k = 0; !flip[t] && k < 3; k++)
+            for (int c = 0; c < 3; c++) {
+                double x = cloud->xyz[3 * (size_t)all->tris[3 * t + (size_t)k] + (size_t)c];
+                lo[c] = fmin(lo[c], x);
+                hi[c] = fmax(hi[c], x);
+            }
+        flip[t] = flip[t] ? 2 : tsl_gp_near_box(&near, lo, hi) ? 1 : 0;
+        m += flip[t] != 0;
     }
     uint32_t *part = tsl_alloc_array(3 * m + 1, sizeof *part);
     uint32_t *at = tsl_alloc_array(m + 1, sizeof *at);
@@ -314,18 +352,19 @@ static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, cons
         s = TESSEL_ERR_NOMEM;
     m = 0;
     for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
-        const uint32_t *v = all->tris + 3 * t;
-        if (!(near[v[0]] || near[v[1]] || near[v[2]]))
+        if (!flip[t])
             continue;
-        memcpy(part + 3 * m, v, 3 * sizeof *v);
-        fixed[m] = !(dirty[v[0]] && dirty[v[1]] && dirty[v[2]]);
+        memcpy(part + 3 * m, all->tris + 3 * t, 3 * sizeof *part);
+        fixed[m] = flip[t] == 1;
         at[m++] = (uint32_t)t;
     }
     if (s == TESSEL_OK)
         s = tsl_flip_diagonals(cloud->xyz, n, part, m, fixed, threads, flips);
     for (size_t i = 0; s == TESSEL_OK && i < m; i++)
         memcpy(all->tris + 3 * (size_t)at[i], part + 3 * i, 3 * sizeof *part);
-    free(near);
+    tsl_gp_near_free(&near);
+    free(flip);
+    free(seed);
     free(part);
     free(at);
     free(fixed);

@@ -8,9 +8,10 @@
 /* Grid cells at most for the selection (the cell grows to stay under). */
 #define NEAR_CELLS (1u << 24)
 
-tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed, double radius,
-                                 uint8_t *sel)
+tessel_status tsl_gp_near_build(const float *xyz, size_t n, const uint8_t *seed, double radius,
+                                tsl_gp_near *g)
 {
+    memset(g, 0, sizeof *g);
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t i = 0; i < n; i++)
         for (int k = 0; seed[i] && k < 3; k++) {
@@ -18,29 +19,33 @@ tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed
             hi[k] = fmax(hi[k], xyz[3 * i + (size_t)k] + radius);
         }
     if (!(lo[0] <= hi[0]))
-        return TESSEL_OK; /* no seed */
+        return TESSEL_OK; /* no seed: no cell */
     /* Cells of half the radius: a point within radius of a seed is in a
      * cell at most two cells' gap from the seed's (the stencil below). */
     double cell = radius > 0.0 ? 0.5 * radius : 1.0;
-    size_t dim[3], cells;
+    size_t cells;
     for (;;) {
         cells = 1;
         for (int k = 0; k < 3; k++) {
             double d = floor((hi[k] - lo[k]) / cell) + 1.0;
-            dim[k] = d < (double)NEAR_CELLS ? (size_t)d : NEAR_CELLS;
-            cells = cells * dim[k] < NEAR_CELLS ? cells * dim[k] : NEAR_CELLS + 1;
+            g->dim[k] = d < (double)NEAR_CELLS ? (size_t)d : NEAR_CELLS;
+            cells = cells * g->dim[k] < NEAR_CELLS ? cells * g->dim[k] : NEAR_CELLS + 1;
         }
         if (cells <= NEAR_CELLS)
             break;
         cell *= 2.0;
     }
+    memcpy(g->lo, lo, sizeof g->lo);
+    g->cell = cell;
     int reach = (int)ceil(radius / cell) + 1;
-    uint8_t *mark = tsl_calloc_array(cells, 1), *near = tsl_calloc_array(cells, 1);
-    if (!mark || !near) {
+    uint8_t *mark = tsl_calloc_array(cells, 1);
+    g->near = tsl_calloc_array(cells, 1);
+    if (!mark || !g->near) {
         free(mark);
-        free(near);
+        tsl_gp_near_free(g);
         return TESSEL_ERR_NOMEM;
     }
+    const size_t *dim = g->dim;
     for (size_t i = 0; i < n; i++) {
         if (!seed[i])
             continue;
@@ -65,29 +70,57 @@ tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed
                             if (ga * ga + gb * gb + gd * gd > gap2 || u < 0 || v < 0 || w < 0 ||
                                 u >= (long)dim[0] || v >= (long)dim[1] || w >= (long)dim[2])
                                 continue;
-                            near[((size_t)u * dim[1] + (size_t)v) * dim[2] + (size_t)w] = 1;
+                            g->near[((size_t)u * dim[1] + (size_t)v) * dim[2] + (size_t)w] = 1;
                         }
             }
-    for (size_t i = 0; i < n; i++) {
-        bool inside = true;
-        size_t c[3];
-        for (int k = 0; k < 3; k++) {
-            double u = (xyz[3 * i + (size_t)k] - lo[k]) / cell;
-            inside = inside && u >= 0.0 && u < (double)dim[k];
-            c[k] = inside ? (size_t)u : 0;
-        }
-        if (inside && near[(c[0] * dim[1] + c[1]) * dim[2] + c[2]])
-            sel[i] = 1;
-    }
     free(mark);
-    free(near);
     return TESSEL_OK;
+}
+
+bool tsl_gp_near_box(const tsl_gp_near *g, const double lo[3], const double hi[3])
+{
+    if (!g->near)
+        return false;
+    size_t from[3], to[3];
+    for (int k = 0; k < 3; k++) {
+        double a = (lo[k] - g->lo[k]) / g->cell, b = (hi[k] - g->lo[k]) / g->cell;
+        if (!(b >= 0.0 && a < (double)g->dim[k]))
+            return false; /* beyond the cells (or NaN) */
+        from[k] = a > 0.0 ? (size_t)a : 0;
+        to[k] = b < (double)g->dim[k] ? (size_t)b : g->dim[k] - 1;
+    }
+    for (size_t x = from[0]; x <= to[0]; x++)
+        for (size_t y = from[1]; y <= to[1]; y++)
+            for (size_t z = from[2]; z <= to[2]; z++)
+                if (g->near[(x * g->dim[1] + y) * g->dim[2] + z])
+                    return true;
+    return false;
+}
+
+void tsl_gp_near_free(tsl_gp_near *g)
+{
+    free(g->near);
+    memset(g, 0, sizeof *g);
+}
+
+tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed, double radius,
+                                 uint8_t *sel)
+{
+    tsl_gp_near g;
+    tessel_status st = tsl_gp_near_build(xyz, n, seed, radius, &g);
+    for (size_t i = 0; !st && i < n; i++) {
+        double p[3];
+        tsl_load(xyz + 3 * i, p);
+        sel[i] |= tsl_gp_near_box(&g, p, p);
+    }
+    tsl_gp_near_free(&g);
+    return st;
 }
 
 tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
                                 const tessel_greedy_params *params, const char *stage,
                                 const tessel_callbacks *callbacks, gp_collect *all,
-                                uint8_t *fate, tessel_recon_summary *summary)
+                                uint8_t *fate, uint8_t *made, tessel_recon_summary *summary)
 {
     size_t n = cloud->count, nt = all->count, m = 0;
     uint32_t *map = tsl_alloc_array(n + 1, sizeof *map), *back = NULL;
@@ -142,8 +175,10 @@ tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
     }
     for (size_t t = 0; !st && t < more.count; t++) {
         uint32_t w[3];
-        for (int k = 0; k < 3; k++)
+        for (int k = 0; k < 3; k++) {
             w[k] = back[more.tris[3 * t + (size_t)k]];
+            made[w[k]] = 1;
+        }
         st = tsl_gp_collect_emit(all, w, 1);
     }
     if (!st && m >= 3) {

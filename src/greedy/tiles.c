@@ -311,9 +311,8 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     }
     summary->mu = mu;
     summary->tiles = nt;
-    st = tsl_gp_local_pass(cloud, sel, &sp, "greedy: seams", callbacks, all, fate, summary);
-    for (size_t i = 0; i < n; i++)
-        dirty[i] |= sel[i];
+    st = tsl_gp_local_pass(cloud, sel, &sp, "greedy: seams", callbacks, all, fate, dirty,
+                           summary);
 done:
     free_tiles(&cut, parts, sums);
     free(touched);

@@ -269,8 +269,9 @@ static inline uint32_t tsl_he_to(const tsl_edit *e, uint32_t h)
  * fixed (NULL: none): triangles t with fixed[t] keep their edges; the
  * checks see them, and their vertices may have several fans (a part of a
  * larger mesh, cut around the triangles to flip). New diagonals are then
- * no longer than the longest edge of tri: a part that holds every
- * triangle within twice that of the flippable ones' vertices holds every
+ * no longer than the longest edge L of the triangles not fixed, so a flip
+ * stays within L of each vertex of its pair: a part that holds every
+ * triangle meeting the balls of radius L around theirs holds every
  * triangle a flip could meet. */
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
                                  const uint8_t *fixed, int threads, size_t *flips);
