@@ -282,22 +282,6 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
     return s;
 }
 
-/* The square of the longest edge of the triangles tri[3 t ..] with
- * pick[t] (pick NULL: all). */
-static double longest_edge2(const float *xyz, const uint32_t *tri, size_t nt, const uint8_t *pick)
-{
-    double most = 0.0;
-    for (size_t t = 0; t < nt; t++)
-        for (int k = 0; pick && !pick[t] ? 0 : k < 3; k++) {
-            double p[3], q[3], d[3];
-            tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)k], p);
-            tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)(k + 1) % 3], q);
-            tsl_sub(q, p, d);
-            most = fmax(most, tsl_dot(d, d));
-        }
-    return most;
-}
-
 /* Step 2 after tiles: the tiles flipped their own triangles, so only
  * those with a vertex on a triangle made since (seams, repairs: dirty)
  * are flipped, less those with an edge over FLIP_LONG mean edges (a few
@@ -320,18 +304,21 @@ static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, cons
         const uint32_t *v = all->tris + 3 * t;
         flip[t] = dirty[v[0]] || dirty[v[1]] || dirty[v[2]];
         if (flip[t]) {
-            sum += sqrt(longest_edge2(cloud->xyz, v, 1, NULL));
+            sum += sqrt(tsl_longest_edge2(cloud->xyz, v, 1, NULL));
             count++;
         }
     }
     double cap = count ? FLIP_LONG * sum / (double)count : 0.0;
     for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
         const uint32_t *v = all->tris + 3 * t;
-        flip[t] = flip[t] && longest_edge2(cloud->xyz, v, 1, NULL) <= cap * cap;
+        flip[t] = flip[t] && tsl_longest_edge2(cloud->xyz, v, 1, NULL) <= cap * cap;
         if (flip[t])
             seed[v[0]] = seed[v[1]] = seed[v[2]] = 1;
     }
-    double l2 = s == TESSEL_OK ? longest_edge2(cloud->xyz, all->tris, nt, flip) : 0.0;
+    double l2 = 0.0;
+    for (size_t t = 0; s == TESSEL_OK && t < nt; t++)
+        if (flip[t])
+            l2 = fmax(l2, tsl_longest_edge2(cloud->xyz, all->tris + 3 * t, 1, NULL));
     if (s == TESSEL_OK)
         s = tsl_gp_near_build(cloud->xyz, n, seed, sqrt(l2), &near);
     for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {

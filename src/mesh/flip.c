@@ -398,13 +398,11 @@ done:
     return st;
 }
 
-/* The square of the longest edge of the triangles tri (nt of them, over
- * xyz) not fixed. */
-static double longest_edge2(const float *xyz, const uint32_t *tri, size_t nt, const uint8_t *fixed)
+double tsl_longest_edge2(const float *xyz, const uint32_t *tri, size_t nt, const uint8_t *skip)
 {
     double most = 0.0;
     for (size_t t = 0; t < nt; t++)
-        for (int k = 0; !fixed[t] && k < 3; k++) {
+        for (int k = 0; !(skip && skip[t]) && k < 3; k++) {
             double p[3], q[3], d[3];
             tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)k], p);
             tsl_load(xyz + 3 * (size_t)tri[3 * t + (size_t)(k + 1) % 3], q);
@@ -494,7 +492,7 @@ tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, siz
     uint8_t *rim = fixed ? tsl_alloc_array(used + 1, 1) : NULL;
     st = TESSEL_ERR_NOMEM;
     if (fixed)
-        r.max_edge2 = longest_edge2(local, tri, nt, fixed);
+        r.max_edge2 = tsl_longest_edge2(local, tri, nt, fixed);
     if (r.twin && r.box && (!fixed || rim) && !(st = tsl_edit_twins(&r, 0, rim)) &&
         !(st = tsl_edit_grid(&r)))
         st = tsl_edit_flips(&r, threads);

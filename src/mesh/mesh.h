@@ -275,6 +275,9 @@ static inline uint32_t tsl_he_to(const tsl_edit *e, uint32_t h)
  * triangle a flip could meet. */
 tessel_status tsl_flip_diagonals(const float *xyz, size_t nv, uint32_t *tri, size_t nt,
                                  const uint8_t *fixed, int threads, size_t *flips);
+/* The square of the longest edge of the nt triangles tri over xyz, less
+ * those t with skip[t] (skip NULL: none). */
+double tsl_longest_edge2(const float *xyz, const uint32_t *tri, size_t nt, const uint8_t *skip);
 
 /* Removes the triangles (tri[3 i ..], *count of them, consistently
  * oriented, over n vertices) at every vertex with more than one fan, until
