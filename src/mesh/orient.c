@@ -374,20 +374,22 @@ static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, con
 {
     if (nt >= UINT32_MAX) /* triangle ids are uint32_t, NONE the largest */
         return TESSEL_ERR_LIMIT;
-    uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb);
-    uint32_t *label = tsl_alloc_array(nt, sizeof *label);
-    uint32_t *comp = tsl_alloc_array(nt, sizeof *comp);
-    uint32_t *queue = tsl_alloc_array(nt, sizeof *queue);
-    float *vote = tsl_alloc_array(nt, sizeof *vote);
-    float *next = tsl_alloc_array(nt, sizeof *next);
-    uint8_t *in = tsl_alloc_array(nt, sizeof *in);
+    /* Each array only while needed (10^7 points: 49 -> 33 bytes per
+     * triangle at the peak, which is the whole reconstruction's). */
+    uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb), *label = NULL, *comp = NULL, *queue = NULL;
+    float *vote = NULL, *next = NULL;
+    uint8_t *in = NULL;
     size_t *size = NULL, *csize = NULL;
     double *sum = NULL;
-    tessel_status st = TESSEL_ERR_NOMEM;
-    if (!nb || !label || !comp || !queue || !vote || !next || !in)
+    tessel_status st = nb ? neighbours(tri, nt, nv, threads, nb) : TESSEL_ERR_NOMEM;
+    if (st)
         goto done;
-    if ((st = neighbours(tri, nt, nv, threads, nb)))
+    vote = tsl_alloc_array(nt, sizeof *vote);
+    next = tsl_alloc_array(nt, sizeof *next);
+    if (!vote || !next) {
+        st = TESSEL_ERR_NOMEM;
         goto done;
+    }
     ptrdiff_t n = (ptrdiff_t)nt;
     memcpy(vote, raw, nt * sizeof *vote);
     for (int r = 0; r < SMOOTH_ROUNDS; r++) {
@@ -408,7 +410,16 @@ static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, con
         vote = next;
         next = tmp;
     }
-
+    free(next);
+    next = NULL;
+    label = tsl_alloc_array(nt, sizeof *label);
+    comp = tsl_alloc_array(nt, sizeof *comp);
+    queue = tsl_alloc_array(nt, sizeof *queue);
+    in = tsl_alloc_array(nt, sizeof *in);
+    if (!label || !comp || !queue || !in) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
     for (size_t t = 0; t < nt; t++)
         in[t] = 1;
     uint32_t ncomp = label_sets(nb, nt, in, comp, queue);
