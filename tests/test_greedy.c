@@ -864,7 +864,11 @@ static void test_touching_spheres(void)
     CHECK_MSG(before > 5.0, "the case no longer crosses (%.2f%% inward): it tests nothing",
               before);
     CHECK_MSG(after < 1.0, "touching spheres: %.2f%% of the area inward", after);
-    CHECK(sum.reoriented > 0 && rep.components == 2);
+    /* The spheres touch closer than the sampling: the front joins them
+     * there (one component); no fragment is left beside the contact (a
+     * 7-vertex piece was, counted as the second sphere). */
+    CHECK_MSG(sum.reoriented > 0 && rep.components == 1, "touching spheres: %zu turned, %zu components",
+              sum.reoriented, rep.components);
     CHECK(rep.boundary_edges * 100 < rep.edges);
     tessel_mesh_free(&m);
     free(raw.t);

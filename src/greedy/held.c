@@ -13,6 +13,8 @@
  *    the wrong way are flipped, their rims and the triangles
  *    at points left with two fans (tsl_single_fans) dropped, and the front
  *    runs again from what is left (params.existing) to mesh the seams.
+ * 1a. fragments, pieces of a few triangles beside a large one, are
+ *    dropped (drop_specks);
  * 1b. small holes the front's ear clipping could not close are reopened
  *    and meshed again by a front over the points near them (reopen_holes).
  * 2. diagonals are flipped where the two angles facing them add up to
@@ -28,6 +30,11 @@
 /* The front that closes a small hole sees the points within this many
  * spheres of influence of the hole's vertices (local.c). */
 #define HOLE_CONTEXT 6.0
+
+/* Pieces of fewer triangles than this are dropped, when the mesh has a
+ * piece of SPECK_BESIDE times more (drop_specks). */
+#define SPECK_TRIANGLES 64
+#define SPECK_BESIDE 64
 
 /* The flips after tiles leave triangles with an edge over this many times
  * the mean longest edge of those they look at as they are. */
@@ -187,6 +194,43 @@ done:
     return loops;
 }
 
+/* Drops the pieces of fewer than SPECK_TRIANGLES triangles from a mesh
+ * that has one of SPECK_BESIDE times as many: fragments the fronts leave
+ * where they meet beside the surface (a seam, a repaired hole), a few
+ * triangles each, which would count as components of their own. Their
+ * points are counted as closed in (their neighbours are on the mesh). */
+static tessel_status drop_specks(size_t n, gp_collect *all, uint8_t *fate)
+{
+    uint32_t *root = tsl_alloc_array(n + 1, sizeof *root);
+    uint32_t *size = tsl_calloc_array(n + 1, sizeof *size);
+    if (!root || !size) {
+        free(root);
+        free(size);
+        return TESSEL_ERR_NOMEM;
+    }
+    tsl_vertex_components(all->tris, all->count, n, root);
+    uint32_t most = 0;
+    for (size_t t = 0; t < all->count; t++) {
+        uint32_t r = root[all->tris[3 * t]];
+        size[r]++;
+        most = size[r] > most ? size[r] : most;
+    }
+    size_t w = 0;
+    for (size_t t = 0; most >= SPECK_BESIDE * SPECK_TRIANGLES && t < all->count; t++) {
+        uint32_t *v = all->tris + 3 * t;
+        if (size[root[v[0]]] < SPECK_TRIANGLES) {
+            fate[v[0]] = fate[v[1]] = fate[v[2]] = FATE_CLOSED_IN;
+            continue;
+        }
+        memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
+    }
+    if (most >= SPECK_BESIDE * SPECK_TRIANGLES)
+        all->count = w;
+    free(root);
+    free(size);
+    return TESSEL_OK;
+}
+
 /* The summary's counts of the mesh in all: points used, left out (by
  * fate[]), boundary edges, components, triangles. */
 static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *fate,
@@ -263,6 +307,8 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
         if (s == TESSEL_OK)
             s = tsl_gp_local_pass(cloud, sel, &hp, "greedy: hole repair", callbacks, all, fate,
                                   dirty, summary);
+        if (s == TESSEL_OK)
+            s = drop_specks(n, all, fate);
         if (s == TESSEL_OK)
             s = summarize(n, all, fate, summary);
         /* Joined or split, or more open: undone. */
@@ -379,6 +425,8 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         s = check_and_repair(cloud, params, callbacks, &all, fate, summary);
         all_dirty = all_dirty || summary->reoriented != before;
     }
+    if (s == TESSEL_OK)
+        s = drop_specks(n, &all, fate);
     if (s == TESSEL_OK)
         s = summarize(n, &all, fate, summary);
     if (s == TESSEL_OK)
