@@ -9,6 +9,10 @@
  * depend on the thread count. */
 #include "greedy/greedy.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -264,7 +268,7 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         mu = sums[k].mu > mu ? sums[k].mu : mu;
     }
     for (size_t k = 0; k < nt && !st; k++) {
-        const gp_collect *c = &parts[k];
+        gp_collect *c = &parts[k];
         for (size_t t = 0; t < c->count && !st; t++) {
             const uint32_t *v = c->tris + 3 * t;
             if (cut.dcut[v[0]] < reach || cut.dcut[v[1]] < reach || cut.dcut[v[2]] < reach) {
@@ -273,9 +277,17 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
             }
             st = tsl_gp_collect_emit(all, v, 1);
         }
+        free(c->tris); /* not held twice */
+        c->tris = NULL;
     }
     if (st)
         goto done;
+#if defined(__GLIBC__)
+    /* The tiles' fronts freed their many arrays of a few MB in an order
+     * that leaves the heap in holes glibc keeps: give them back (10^7
+     * points: peak 1,530 -> 1,378 MB). */
+    malloc_trim(0);
+#endif
     memcpy(seed, touched, n);
     if ((st = tsl_single_fans(n, all->tris, &all->count, touched)) ||
         (st = orient_tiles(cloud, all, &cut, reach, spacing, params->tile_points,
