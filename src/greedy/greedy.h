@@ -429,6 +429,14 @@ void tsl_gp_near_free(tsl_gp_near *g);
 tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed, double radius,
                                  uint8_t *sel);
 
+/* Leaves out of sel the points a front left out (fate[i] not FATE_USED)
+ * but those within reach of a cut (dcut, NULL: none): such a point lies
+ * among triangles, or beside them, and the triangles may lie beyond the
+ * selection, where a local front cannot see them and would lay a second
+ * sheet over them from the point. */
+void tsl_gp_select_meshed(size_t n, const uint8_t *fate, const float *dcut, double reach,
+                          uint8_t *sel);
+
 /* A front over the points flagged in sel only (params checked; mu as
  * given), from the triangles of all among them (points with a triangle
  * beyond are frozen); its triangles appended to all and their vertices

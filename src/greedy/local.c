@@ -117,6 +117,14 @@ tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed
     return st;
 }
 
+void tsl_gp_select_meshed(size_t n, const uint8_t *fate, const float *dcut, double reach,
+                          uint8_t *sel)
+{
+    for (size_t i = 0; i < n; i++)
+        if (fate[i] != FATE_USED && !(dcut && dcut[i] < reach))
+            sel[i] = 0;
+}
+
 tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
                                 const tessel_greedy_params *params, const char *stage,
                                 const tessel_callbacks *callbacks, gp_collect *all,

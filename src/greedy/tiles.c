@@ -311,6 +311,7 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     free(open);
     if ((st = tsl_gp_select_near(cloud->xyz, n, seed, TILE_CONTEXT * reach, sel)))
         goto done;
+    tsl_gp_select_meshed(n, fate, cut.dcut, reach, sel);
     tessel_greedy_params sp = *params;
     sp.mu = mu;
     sp.mu_from_sampling = 0;
