@@ -196,46 +196,22 @@ done:
     return st;
 }
 
-/* Diagonal flips on the triangles with no frozen vertex (the others border
- * triangles written already, which the checks could not see), less those
- * at points where leaving those out splits the fan (the flips need one). */
+/* Diagonal flips on the triangles with no frozen vertex; those with one
+ * (their vertex's other triangles are written already) are fixed, and
+ * still checked against. */
 static tessel_status flip_free(const tessel_cloud *c, const uint8_t *frozen, gp_collect *all,
                                int threads, size_t *flips)
 {
-    *flips = 0;
-    size_t n = all->count, m = 0;
-    uint32_t *movable = tsl_alloc_array(3 * n + 1, sizeof *movable);
-    uint32_t *before = tsl_alloc_array(3 * n + 1, sizeof *before);
-    size_t *at = tsl_alloc_array(n + 1, sizeof *at);
-    uint8_t *touched = tsl_calloc_array(c->count + 1, 1);
-    tessel_status st = movable && before && at && touched ? TESSEL_OK : TESSEL_ERR_NOMEM;
-    for (size_t t = 0; !st && t < n; t++) {
+    size_t n = all->count;
+    uint8_t *fixed = tsl_alloc_array(n + 1, 1);
+    if (!fixed)
+        return TESSEL_ERR_NOMEM;
+    for (size_t t = 0; t < n; t++) {
         const uint32_t *v = all->tris + 3 * t;
-        if (frozen[v[0]] || frozen[v[1]] || frozen[v[2]]) {
-            touched[v[0]] = touched[v[1]] = touched[v[2]] = 1;
-            continue;
-        }
-        memcpy(movable + 3 * m, v, 3 * sizeof *v);
-        at[m++] = t;
+        fixed[t] = frozen[v[0]] || frozen[v[1]] || frozen[v[2]];
     }
-    size_t kept = m;
-    if (!st) {
-        memcpy(before, movable, 3 * m * sizeof *before);
-        st = tsl_single_fans(c->count, movable, &kept, touched);
-    }
-    /* tsl_single_fans keeps the order: match the rest to their slots. */
-    for (size_t i = 0, j = 0; !st && i < m && j < kept; i++)
-        if (!memcmp(before + 3 * i, movable + 3 * j, 3 * sizeof *before))
-            at[j++] = at[i];
-    m = kept;
-    if (!st)
-        st = tsl_flip_diagonals(c->xyz, c->count, movable, m, NULL, threads, flips);
-    for (size_t i = 0; !st && i < m; i++)
-        memcpy(all->tris + 3 * at[i], movable + 3 * i, 3 * sizeof *movable);
-    free(movable);
-    free(before);
-    free(at);
-    free(touched);
+    tessel_status st = tsl_flip_diagonals(c->xyz, c->count, all->tris, n, fixed, threads, flips);
+    free(fixed);
     return st;
 }
 
