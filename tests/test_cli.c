@@ -421,6 +421,25 @@ static void test_interrupt(void)
                   "signal %d: exit status %d", sigs[k], WIFEXITED(status) ? WEXITSTATUS(status) : -1);
         CHECK_MSG(stray_files() == 0, "signal %d: %d files left", sigs[k], stray_files());
     }
+    /* Its messages into a pipe nobody reads any more: it finishes, and
+     * leaves its output and nothing else. */
+    int fd[2];
+    CHECK(pipe(fd) == 0);
+    pid_t pid = fork();
+    if (pid == 0) {
+        close(fd[0]);
+        if (!freopen("/dev/null", "w", stdout) || dup2(fd[1], 2) < 0)
+            _exit(99);
+        execl(TESSEL_CLI, TESSEL_CLI, "reconstruct", in, out, "--method", "greedy", (char *)NULL);
+        _exit(98);
+    }
+    close(fd[0]);
+    close(fd[1]);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    CHECK_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 0, "closed pipe: status %d", status);
+    CHECK(access(out, F_OK) == 0 && stray_files() == 1); /* the output only */
+    unlink(out);
     unlink(in);
 }
 

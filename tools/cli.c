@@ -438,6 +438,10 @@ void cli_install_signals(void)
     sa.sa_flags = SA_RESETHAND;
     sigaction(SIGINT, &sa, NULL);
     sigaction(SIGTERM, &sa, NULL);
+    /* Messages into a pipe closed early (tessel ... 2>&1 | head) must not
+     * kill the command with its temporary output still there: the write
+     * fails instead, and the command finishes. */
+    signal(SIGPIPE, SIG_IGN);
 }
 
 static int progress_cb(void *user, const char *stage, double fraction)
