@@ -730,8 +730,9 @@ typedef struct tessel_greedy_params {
     size_t tile_points;    /* with the mesh held (orient_check or flip):
                               more points than this are cut into tiles of
                               at most this many, meshed in parallel, and
-                              the seams closed by a front over all points
-                              from the tiles' triangles; the result
+                              the seams closed by a front over the points
+                              near the cuts from the tiles' triangles
+                              (docs/greedy.md, "Tiles"); the result
                               depends on this, not on the thread count.
                               Default 262144; 0: one front */
     int threads;           /* 0 = OpenMP default (honours OMP_NUM_THREADS) */

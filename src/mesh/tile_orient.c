@@ -233,7 +233,7 @@ tessel_status tsl_orient_tiles(uint32_t *tri, const uint32_t *comp, size_t count
     }
     /* Small pieces at a cut (a tile's corner of the surface, the tip of a
      * thin part) relay the orientation between their neighbours, then are
-     * left to the front over all points, which joins them better. */
+     * left to the front that closes the seams, which joins them better. */
     for (size_t t = 0; t < count; t++)
         size[comp[t]]++;
     for (size_t t = 0; t < count; t++) {
