@@ -201,34 +201,30 @@ done:
  * points are counted as closed in (their neighbours are on the mesh). */
 static tessel_status drop_specks(size_t n, gp_collect *all, uint8_t *fate)
 {
-    uint32_t *root = tsl_alloc_array(n + 1, sizeof *root);
-    uint32_t *size = tsl_calloc_array(n + 1, sizeof *size);
-    if (!root || !size) {
-        free(root);
-        free(size);
-        return TESSEL_ERR_NOMEM;
-    }
-    tsl_vertex_components(all->tris, all->count, n, root);
+    size_t ncomp = 0;
+    uint32_t *comp = tsl_alloc_array(all->count + 1, sizeof *comp);
+    tessel_status st = comp ? tsl_triangle_components(all->tris, all->count, n, comp, &ncomp)
+                            : TESSEL_ERR_NOMEM;
+    uint32_t *size = st ? NULL : tsl_calloc_array(ncomp + 1, sizeof *size);
+    if (!st && !size)
+        st = TESSEL_ERR_NOMEM;
     uint32_t most = 0;
-    for (size_t t = 0; t < all->count; t++) {
-        uint32_t r = root[all->tris[3 * t]];
-        size[r]++;
-        most = size[r] > most ? size[r] : most;
-    }
+    for (size_t t = 0; !st && t < all->count; t++)
+        most = ++size[comp[t]] > most ? size[comp[t]] : most;
     size_t w = 0;
-    for (size_t t = 0; most >= SPECK_BESIDE * SPECK_TRIANGLES && t < all->count; t++) {
+    for (size_t t = 0; !st && most >= SPECK_BESIDE * SPECK_TRIANGLES && t < all->count; t++) {
         uint32_t *v = all->tris + 3 * t;
-        if (size[root[v[0]]] < SPECK_TRIANGLES) {
+        if (size[comp[t]] < SPECK_TRIANGLES) {
             fate[v[0]] = fate[v[1]] = fate[v[2]] = FATE_CLOSED_IN;
             continue;
         }
         memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
     }
-    if (most >= SPECK_BESIDE * SPECK_TRIANGLES)
+    if (!st && most >= SPECK_BESIDE * SPECK_TRIANGLES)
         all->count = w;
-    free(root);
+    free(comp);
     free(size);
-    return TESSEL_OK;
+    return st;
 }
 
 /* The summary's counts of the mesh in all: points used, left out (by
