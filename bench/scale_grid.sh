@@ -31,7 +31,7 @@ ooc_memory=${OOC_MEMORY:-2G}
 tessel=$build/tessel
 mpi=""
 if [ -x "$build/tessel-mpi" ] && command -v mpirun >/dev/null 2>&1; then
-    mpi="mpirun --oversubscribe --allow-run-as-root -np 2 $build/tessel-mpi"
+    mpi="mpirun --oversubscribe --allow-run-as-root --bind-to none -np 2 $build/tessel-mpi"
 fi
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT INT TERM

@@ -28,12 +28,13 @@ TESSEL_API tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_
 /* tessel_reconstruct_greedy with the tiles (tessel_greedy_params.tile_points)
  * meshed by all processes of comm, tile k by process k mod size, each with
  * params->threads threads, and sent to process 0, which joins them (seams,
- * orientation check, flips) with params->threads threads while the others
- * wait without spinning. Only process 0's sink receives triangles and only
- * its summary is filled; the others may pass a sink that discards. A cloud
- * of at most tile_points points is one tile: process 0 meshes it alone. A
- * failure on any process (out of memory, a cancellation) is returned on
- * every process. */
+ * orientation check, flips) while the others wait without spinning: on
+ * params->threads (0: OpenMP's default) times the processes of comm on its
+ * machine, at most the cores it may run on (omp_get_num_procs). Only
+ * process 0's sink receives triangles and only its summary is filled; the
+ * others may pass a sink that discards. A cloud of at most tile_points
+ * points is one tile: process 0 meshes it alone. A failure on any process
+ * (out of memory, a cancellation) is returned on every process. */
 TESSEL_API tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
                                                        const tessel_greedy_params *params,
                                                        const tessel_callbacks *callbacks,

@@ -11,6 +11,10 @@
 #include <string.h>
 #include <time.h>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "greedy/greedy.h"
 #include "tessel_mpi.h"
 
@@ -102,7 +106,8 @@ tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_status stat
 typedef struct ranks {
     MPI_Comm comm;
     int rank, size;
-    bool joined; /* the runner was called (it took part in the tiles' steps) */
+    int tile_threads; /* each process's threads for its tiles */
+    bool joined;      /* the runner was called (it took part in the tiles' steps) */
 } ranks;
 
 /* This process's tiles, on its threads (no progress from inside: the
@@ -114,7 +119,7 @@ static tessel_status mesh_mine(const ranks *r, const tsl_gp_tiles_job *job)
     if (!status)
         return TESSEL_ERR_NOMEM;
     long long count = (long long)nt;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(job->params->threads))
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
     for (long long kk = 0; kk < count; kk++) {
         size_t k = (size_t)kk;
         status[k] = k % (size_t)r->size == (size_t)r->rank ? tsl_gp_tile_mesh(job, k, NULL)
@@ -244,17 +249,47 @@ static tessel_status final_status(const ranks *r, tessel_status mine)
     return (tessel_status)st;
 }
 
+/* Process 0's threads after the tiles: each process's, times the processes
+ * on its machine, at most the machine's cores (but never fewer than one
+ * process's). */
+static int last_step_threads(int threads, int beside)
+{
+    int one = tsl_threads(threads);
+#ifdef _OPENMP
+    int cores = omp_get_num_procs();
+#else
+    int cores = 1;
+#endif
+    long want = (long)one * beside;
+    if (want > cores)
+        want = cores > one ? cores : one;
+    return (int)want;
+}
+
 tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
                                             const tessel_greedy_params *params,
                                             const tessel_callbacks *callbacks,
                                             const tessel_triangle_sink *sink,
                                             tessel_recon_summary *summary)
 {
-    ranks r = {comm, 0, 1, false};
+    ranks r = {comm, 0, 1, 0, false};
     MPI_Comm_rank(comm, &r.rank);
     MPI_Comm_size(comm, &r.size);
     tsl_gp_tile_runner runner = {run_ranks, &r};
     tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
+    /* After the tiles the processes beside process 0 on its machine wait
+     * without a core: process 0 takes their threads for the seams, the
+     * orientation check and the flips (the mesh does not depend on it). */
+    r.tile_threads = p.threads;
+    MPI_Comm node;
+    if (MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
+        MPI_SUCCESS) {
+        int beside = 1;
+        MPI_Comm_size(node, &beside);
+        MPI_Comm_free(&node);
+        if (r.rank == 0)
+            p.threads = last_step_threads(p.threads, beside);
+    }
     bool tiled = tsl_gp_tiled(cloud, &p);
     tessel_status st;
     if (r.rank == 0)
