@@ -282,6 +282,14 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
                 cross2(b->x - a->x, b->y - a->y, c->x - a->x, c->y - a->y) > 0.0)
                 return TESSEL_OK;
         }
+        /* The same for the free points beyond rho, which a triangle to one
+         * of R's boundary neighbours may reach past. */
+        for (size_t k = 0; k < g->far_count; k++) {
+            const double *c = g->far[k];
+            if (cross2(a->x, a->y, c[0], c[1]) > 0.0 && cross2(c[0], c[1], b->x, b->y) > 0.0 &&
+                cross2(b->x - a->x, b->y - a->y, c[0] - a->x, c[1] - a->y) > 0.0)
+                return TESSEL_OK;
+        }
         /* With the cone certificate, the triangle must provably lie in the
          * free cone: both ends inside it (or R's boundary neighbours) and
          * neither boundary ray inside the angle a R b. */
@@ -379,6 +387,50 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
         tsl_gp_link_apply(g, pts[i], sa[i], sb[i], how[i], 0);
     *result = TRY_OK;
     return TESSEL_OK;
+}
+
+/* Whether c is a Delaunay neighbour of R (the origin) among the points of
+ * seq in the projection: the bisector of R and c keeps a piece of positive
+ * length on the border of R's Voronoi cell. The bisector is c / 2 + t c^perp;
+ * each other point q bounds t through |x - q| >= |x|. */
+static bool voronoi_neighbour(const gp *g, const gp_cand *c)
+{
+    double lo = -INFINITY, hi = INFINITY;
+    for (size_t i = 0; i < g->seq_count; i++) {
+        const gp_cand *q = &g->cand[g->seq[i]];
+        if (q == c)
+            continue;
+        double a = 2.0 * (c->x * q->y - c->y * q->x);
+        double rhs = q->x * q->x + q->y * q->y - (c->x * q->x + c->y * q->y);
+        if (a > 0.0)
+            hi = dmin(hi, rhs / a);
+        else if (a < 0.0)
+            lo = dmax(lo, rhs / a);
+        else if (rhs < 0.0)
+            return false;
+    }
+    return lo < hi;
+}
+
+/* Keeps of the free points between R's boundary neighbours only R's
+ * Delaunay neighbours in the projection (as Gopi, Krishnan & Silva 2000
+ * do). Section 4.2 joins R to every visible candidate, which leaves long
+ * thin triangles for the diagonal flips to undo. A dropped point is outside
+ * the circumcircle of every fan triangle, so the fan does not trap it; a
+ * later reference point takes it. */
+static void delaunay_fan(gp *g)
+{
+    for (size_t i = 1; i + 1 < g->seq_count; i++) {
+        gp_cand *c = &g->cand[g->seq[i]];
+        if (g->head[c->idx] == NONE && !voronoi_neighbour(g, c))
+            c->kept = 0;
+    }
+    size_t w = 1;
+    for (size_t i = 1; i + 1 < g->seq_count; i++)
+        if (g->cand[g->seq[i]].kept)
+            g->seq[w++] = g->seq[i];
+    g->seq[w++] = g->seq[g->seq_count - 1];
+    g->seq_count = w;
 }
 
 /* Angle criterion (section 4.1, Figure 3): while a neighbour makes an angle
@@ -481,6 +533,32 @@ static void fan_box(const gp *g, gp_frame *f, const uint32_t *idx, size_t count)
     }
 }
 
+/* Lists the free points of the box farther than rho from R but not farther
+ * than its farthest boundary neighbour: only candidates are checked for
+ * being trapped, and a triangle to a boundary neighbour beyond rho may
+ * cover such a point (Invariant 1). */
+static tessel_status far_points(gp *g, const gp_frame *f)
+{
+    g->far_count = 0;
+    double rho2 = f->rho * f->rho, reach2 = 0.0;
+    for (size_t i = 0; i < g->seq_count; i++)
+        reach2 = dmax(reach2, g->cand[g->seq[i]].d2);
+    if (!(reach2 > rho2))
+        return TESSEL_OK;
+    for (size_t k = 0; k < g->box_count; k++) {
+        const gp_box *x = &g->box[k];
+        double d2 = tsl_dot(x->rel, x->rel);
+        if (d2 <= rho2 || d2 > reach2 || g->head[x->idx] != NONE || !is_live(g, x->idx))
+            continue;
+        if (grow((void **)&g->far, &g->far_cap, g->far_count + 1, sizeof *g->far))
+            return TESSEL_ERR_NOMEM;
+        g->far[g->far_count][0] = tsl_dot(x->rel, f->u);
+        g->far[g->far_count][1] = tsl_dot(x->rel, f->v);
+        g->far_count++;
+    }
+    return TESSEL_OK;
+}
+
 /* Builds seq = e, candidates of the free sector by angle, s, for R whose fan
  * runs s -> ... -> e, and triangulates it. Candidate keys must be relative to
  * e's direction. */
@@ -533,7 +611,10 @@ static tessel_status fill_sector(gp *g, uint32_t R, gp_frame *f)
         if (g->cand[i].kept == 2)
             g->cand[i].kept = 1, g->cand[i].key = -1.0;
     angle_criterion(g);
+    delaunay_fan(g);
     fan_box(g, f, g->seq, g->seq_count);
+    if ((st_ = far_points(g, f)) != TESSEL_OK)
+        return st_;
     /* The held triangles are collected at the walk's first guard test. */
     tsl_gp_guard_defer(g, R, f, 1);
     st_ = walk(g, R, f);
@@ -876,6 +957,7 @@ static tessel_status seed(gp *g, uint32_t R)
         if (g->cand[i].kept)
             g->seq[nk++] = (uint32_t)i;
     int made = 0;
+    g->far_count = 0; /* every candidate lies within rho */
     if (nk >= 2) {
         size_t start = 0;
         double widest = -1.0;

@@ -229,6 +229,9 @@ typedef struct gp {
     size_t cand_count, cand_cap;
     uint32_t *seq;
     size_t seq_count, seq_cap;
+    double (*far)[2];     /* projections of the free points beyond rho that a
+                             triangle to a boundary neighbour may reach */
+    size_t far_count, far_cap;
     uint32_t *hide;       /* visibility: candidates that may be hidden */
     size_t hide_cap;
     gp_gtri *gt;

@@ -834,6 +834,7 @@ void tsl_gp_free(gp *g)
     free(g->boxd);
     free(g->cand);
     free(g->seq);
+    free(g->far);
     free(g->hide);
     free(g->gt);
     free(g->pmark);
