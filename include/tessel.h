@@ -665,7 +665,9 @@ typedef struct tessel_greedy_params {
                               triangle with a smaller angle at R are dropped
                               when that traps no other point (section 4.1,
                               "angle criterion"); 0 disables it. Default 0,
-                              range [0, 45] */
+                              range [0, 45]. The fans keep only R's Delaunay
+                              neighbours, so it seldom helps and can make the
+                              smallest angles smaller */
     tessel_greedy_plane plane; /* default TESSEL_GREEDY_PLANE_PCA */
     double max_spacing;    /* m is capped at this multiple of the cloud's mean
                               spacing: it bounds the sphere of influence (and
