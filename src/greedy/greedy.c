@@ -412,17 +412,18 @@ static bool voronoi_neighbour(const gp *g, const gp_cand *c)
     return lo < hi;
 }
 
-/* Keeps of the free points between R's boundary neighbours only R's
+/* Keeps of the candidates between R's boundary neighbours only R's
  * Delaunay neighbours in the projection (as Gopi, Krishnan & Silva 2000
- * do). Section 4.2 joins R to every visible candidate, which leaves long
- * thin triangles for the diagonal flips to undo. A dropped point is outside
- * the circumcircle of every fan triangle, so the fan does not trap it; a
- * later reference point takes it. */
+ * do), fringe points too. Section 4.2 joins R to every visible candidate,
+ * which leaves long thin triangles for the diagonal flips to undo. A
+ * dropped point is outside the circumcircle of every fan triangle, so the
+ * fan does not cover it: a free one is taken by a later reference point, a
+ * fringe one keeps its own fan open for its turn. */
 static void delaunay_fan(gp *g)
 {
     for (size_t i = 1; i + 1 < g->seq_count; i++) {
         gp_cand *c = &g->cand[g->seq[i]];
-        if (g->head[c->idx] == NONE && !voronoi_neighbour(g, c))
+        if (!voronoi_neighbour(g, c))
             c->kept = 0;
     }
     size_t w = 1;
