@@ -364,15 +364,18 @@ static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, cons
             l2 = fmax(l2, tsl_longest_edge2(cloud->xyz, all->tris + 3 * t, 1, NULL));
     if (s == TESSEL_OK)
         s = tsl_gp_near_build(cloud->xyz, n, seed, sqrt(l2), &near);
-    for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    ptrdiff_t count_t = s == TESSEL_OK ? (ptrdiff_t)nt : 0;
+#pragma omp parallel for schedule(static) reduction(+ : m) num_threads(tsl_threads(threads))
+    for (ptrdiff_t t = 0; t < count_t; t++) {
+        float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
         for (int k = 0; !flip[t] && k < 3; k++)
             for (int c = 0; c < 3; c++) {
-                double x = cloud->xyz[3 * (size_t)all->tris[3 * t + (size_t)k] + (size_t)c];
-                lo[c] = fmin(lo[c], x);
-                hi[c] = fmax(hi[c], x);
+                float x = cloud->xyz[3 * (size_t)all->tris[3 * (size_t)t + (size_t)k] + (size_t)c];
+                lo[c] = x < lo[c] ? x : lo[c];
+                hi[c] = x > hi[c] ? x : hi[c];
             }
-        flip[t] = flip[t] ? 2 : tsl_gp_near_box(&near, lo, hi) ? 1 : 0;
+        const double dlo[3] = {lo[0], lo[1], lo[2]}, dhi[3] = {hi[0], hi[1], hi[2]};
+        flip[t] = flip[t] ? 2 : tsl_gp_near_box(&near, dlo, dhi) ? 1 : 0;
         m += flip[t] != 0;
     }
     uint32_t *part = tsl_alloc_array(3 * m + 1, sizeof *part);

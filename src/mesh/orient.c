@@ -413,34 +413,47 @@ static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, con
     free(next);
     next = NULL;
     label = tsl_alloc_array(nt, sizeof *label);
-    comp = tsl_alloc_array(nt, sizeof *comp);
     queue = tsl_alloc_array(nt, sizeof *queue);
     in = tsl_alloc_array(nt, sizeof *in);
-    if (!label || !comp || !queue || !in) {
+    if (!label || !queue || !in) {
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
-    for (size_t t = 0; t < nt; t++)
-        in[t] = 1;
-    uint32_t ncomp = label_sets(nb, nt, in, comp, queue);
     for (size_t t = 0; t < nt; t++)
         in[t] = vote[t] < 0.0f;
     uint32_t nset = label_sets(nb, nt, in, label, queue);
     size = tsl_calloc_array((size_t)nset + 1, sizeof *size);
-    csize = tsl_calloc_array((size_t)ncomp + 1, sizeof *csize);
     sum = tsl_calloc_array((size_t)nset + 1, sizeof *sum);
-    if (!size || !csize || !sum) {
+    if (!size || !sum) {
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
-    for (size_t t = 0; t < nt; t++) {
-        csize[comp[t]]++;
+    for (size_t t = 0; t < nt; t++)
         if (label[t] != NONE) {
             size[label[t]]++;
             sum[label[t]] += raw[t];
         }
+    bool any = false;
+    for (uint32_t l = 0; l < nset; l++)
+        any |= size[l] >= MIN_REGION && sum[l] < 0.0;
+    /* The components' sizes only when a region may turn (mostly none: the
+     * labelling is a serial walk over the whole mesh). */
+    if (any && !whole) {
+        for (size_t t = 0; t < nt; t++)
+            in[t] = 1;
+        if (!(comp = tsl_alloc_array(nt, sizeof *comp))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        uint32_t ncomp = label_sets(nb, nt, in, comp, queue);
+        if (!(csize = tsl_calloc_array((size_t)ncomp + 1, sizeof *csize))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        for (size_t t = 0; t < nt; t++)
+            csize[comp[t]]++;
     }
-    for (size_t t = 0; t < nt; t++) {
+    for (size_t t = 0; any && t < nt; t++) {
         uint32_t l = label[t];
         if (l != NONE && size[l] >= MIN_REGION && sum[l] < 0.0 &&
             (whole || 2 * size[l] < csize[comp[t]]))
