@@ -267,17 +267,30 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         spacing = sums[k].spacing > spacing ? sums[k].spacing : spacing;
         mu = sums[k].mu > mu ? sums[k].mu : mu;
     }
-    for (size_t k = 0; k < nt && !st; k++) {
-        gp_collect *c = &parts[k];
-        for (size_t t = 0; t < c->count && !st; t++) {
+    /* Each tile's kept triangles moved to the front of its array, in
+     * parallel (a point belongs to one tile: no two write one flag), then
+     * appended in tile order, each array freed once copied (not held
+     * twice). */
+    long long ntiles = (long long)nt;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(params->threads))
+    for (long long kk = 0; kk < ntiles; kk++) {
+        gp_collect *c = &parts[kk];
+        size_t w = 0;
+        for (size_t t = 0; t < c->count; t++) {
             const uint32_t *v = c->tris + 3 * t;
             if (cut.dcut[v[0]] < reach || cut.dcut[v[1]] < reach || cut.dcut[v[2]] < reach) {
                 touched[v[0]] = touched[v[1]] = touched[v[2]] = 1;
                 continue;
             }
-            st = tsl_gp_collect_emit(all, v, 1);
+            memmove(c->tris + 3 * w++, v, 3 * sizeof *v);
         }
-        free(c->tris); /* not held twice */
+        c->count = w;
+    }
+    for (size_t k = 0; k < nt; k++) {
+        gp_collect *c = &parts[k];
+        if (!st)
+            st = tsl_gp_collect_emit(all, c->tris, c->count);
+        free(c->tris);
         c->tris = NULL;
     }
     if (st)
