@@ -254,9 +254,11 @@ static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *f
 
 /* Step 1b: small holes the front could not close (its ear clipping finds
  * every ear refused, mostly where the triangles beside the hole fold over
- * each other): the triangles at their vertices are dropped and a front
- * over the points within HOLE_CONTEXT spheres of influence of them runs
- * again from the triangles there, once. Where two sheets pass closer than
+ * each other): the triangles at their vertices and `rings` rings beyond
+ * are dropped and a front over the points within HOLE_CONTEXT spheres of
+ * influence of them runs again from the triangles there. The caller tries
+ * with 0, 1 and 2 rings while holes are left: a fold can lie a ring or two
+ * away from the hole, and the front then remakes it. Where two sheets pass closer than
  * the sampling (two spheres touching), that front can join them through a
  * hole, or it can leave a piece cut off: a repair that changes the number
  * of components, or leaves more boundary edges, is undone. summary holds
@@ -264,7 +266,8 @@ static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *f
  * triangles are flagged in dirty (also when undone: a few more to look at). */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
-                                  uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary)
+                                  uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary,
+                                  int rings)
 {
     if (params->max_hole < 3)
         return TESSEL_OK;
@@ -280,6 +283,17 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
     tessel_status s = loops < 0 || (loops > 0 && (!saved || !saved_fate)) ? TESSEL_ERR_NOMEM
                                                                           : TESSEL_OK;
     if (loops > 0 && s == TESSEL_OK) {
+        /* The loops' vertices and `rings` rings of triangles around them
+         * (sel as scratch). */
+        for (int r = 0; r < rings; r++) {
+            memcpy(sel, hole, n);
+            for (size_t t = 0; t < all->count; t++) {
+                const uint32_t *v = all->tris + 3 * t;
+                if (sel[v[0]] || sel[v[1]] || sel[v[2]])
+                    hole[v[0]] = hole[v[1]] = hole[v[2]] = 1;
+            }
+        }
+        memset(sel, 0, n);
         memcpy(saved, all->tris, 3 * before_count * sizeof *saved);
         memcpy(saved_fate, fate, n);
         tessel_recon_summary before = *summary;
@@ -429,8 +443,8 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         s = drop_specks(n, &all, fate);
     if (s == TESSEL_OK)
         s = summarize(n, &all, fate, summary);
-    if (s == TESSEL_OK)
-        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, summary);
+    for (int round = 0; round < 3 && s == TESSEL_OK && summary->boundary_edges; round++)
+        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, summary, round);
     if (s == TESSEL_OK && params->flip) {
         /* Added to the tiles' flips, when there were tiles. The flips
          * change no count of the summary. */
