@@ -258,7 +258,8 @@ static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *f
  * are dropped and a front over the points within HOLE_CONTEXT spheres of
  * influence of them runs again from the triangles there. The caller tries
  * with 0, 1 and 2 rings while holes are left: a fold can lie a ring or two
- * away from the hole, and the front then remakes it. Where two sheets pass closer than
+ * away from the hole, and the front then remakes it. *holes: whether
+ * there were small loops to repair. Where two sheets pass closer than
  * the sampling (two spheres touching), that front can join them through a
  * hole, or it can leave a piece cut off: a repair that changes the number
  * of components, or leaves more boundary edges, is undone. summary holds
@@ -267,8 +268,9 @@ static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *f
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
                                   uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary,
-                                  int rings)
+                                  int rings, bool *holes)
 {
+    *holes = false;
     if (params->max_hole < 3)
         return TESSEL_OK;
     size_t n = cloud->count;
@@ -277,6 +279,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
     long loops = hole && touched && sel
                      ? small_loops(all->tris, all->count, n, params->max_hole, hole)
                      : -1;
+    *holes = loops > 0;
     size_t before_count = all->count;
     uint32_t *saved = loops > 0 ? tsl_alloc_array(3 * before_count, sizeof *saved) : NULL;
     uint8_t *saved_fate = loops > 0 ? tsl_alloc_array(n, 1) : NULL;
@@ -443,8 +446,9 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         s = drop_specks(n, &all, fate);
     if (s == TESSEL_OK)
         s = summarize(n, &all, fate, summary);
-    for (int round = 0; round < 3 && s == TESSEL_OK && summary->boundary_edges; round++)
-        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, summary, round);
+    bool holes = true;
+    for (int round = 0; round < 3 && s == TESSEL_OK && holes && summary->boundary_edges; round++)
+        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, summary, round, &holes);
     if (s == TESSEL_OK && params->flip) {
         /* Added to the tiles' flips, when there were tiles. The flips
          * change no count of the summary. */
