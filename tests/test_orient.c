@@ -3,7 +3,9 @@
  * turned inward, mark its rim, and leave alone what parity cannot judge
  * (a whole component, an open surface). And tiles oriented against each
  * other across a cut (src/mesh/tile_orient.c) that a plane meets at a
- * shallow angle. */
+ * shallow angle. And the removal of triangles at vertices with several
+ * fans (src/mesh/topology.c), which the repairs after an orientation check
+ * rely on. */
 #include "mesh/mesh.h"
 #include "test.h"
 
@@ -241,6 +243,70 @@ static void test_tiles_shallow_cut(void)
               "shallow cut: %zu of %zu triangles against the first", against, nt);
 }
 
+/* Border edges leaving vertex v among the nt triangles: more than one is
+ * more than one fan. */
+static unsigned fans_at(const uint32_t *tri, size_t nt, uint32_t v)
+{
+    unsigned border = 0;
+    for (size_t t = 0; t < nt; t++)
+        for (int k = 0; k < 3; k++) {
+            if (tri[3 * t + (size_t)k] != v)
+                continue;
+            uint32_t after = tri[3 * t + (size_t)(k + 1) % 3];
+            bool twin = false;
+            for (size_t u = 0; u < nt && !twin; u++)
+                for (int i = 0; i < 3; i++)
+                    twin = twin || (tri[3 * u + (size_t)i] == v &&
+                                    tri[3 * u + (size_t)(i + 2) % 3] == after);
+            border += !twin;
+        }
+    return border;
+}
+
+/* The sphere less a pseudo-random fraction of its triangles (and, for
+ * `local`, only those at a few vertices), so that many vertices have
+ * several fans: afterwards none may have, the triangles kept stay in their
+ * order and touched comes back cleared. */
+static void test_single_fans(bool local, uint32_t seed)
+{
+    make_sphere(&m);
+    static uint32_t before[3 * 2 * RINGS * SECTORS];
+    static uint8_t touched[2 + (RINGS - 1) * SECTORS];
+    memset(touched, 0, sizeof touched);
+    size_t w = 0;
+    uint32_t x = seed;
+    for (size_t t = 0; t < m.nt; t++) {
+        x = x * 1664525u + 1013904223u;
+        const uint32_t *v = m.tri + 3 * t;
+        bool near = !local || v[0] % 97 < 3 || v[1] % 97 < 3 || v[2] % 97 < 3;
+        if (near && (x >> 24) < 80) { /* about a third, where dropped */
+            touched[v[0]] = touched[v[1]] = touched[v[2]] = 1;
+            continue;
+        }
+        memcpy(m.tri + 3 * w++, v, 3 * sizeof *v);
+    }
+    m.nt = w;
+    memcpy(before, m.tri, 3 * m.nt * sizeof *before);
+    size_t nt = m.nt, several = 0;
+    for (uint32_t v = 0; v < m.nv; v++)
+        several += fans_at(m.tri, nt, v) > 1;
+    CHECK_MSG(several > 0, "single fans: the test mesh has no vertex with several fans");
+    CHECK(tsl_single_fans(m.nv, m.tri, &nt, touched) == TESSEL_OK);
+    size_t left = 0;
+    for (uint32_t v = 0; v < m.nv; v++) {
+        left += fans_at(m.tri, nt, v) > 1;
+        CHECK_MSG(!touched[v], "single fans: vertex %u still touched", v);
+    }
+    CHECK_MSG(left == 0, "single fans (%s, seed %u): %zu vertices with several fans of %zu",
+              local ? "local" : "everywhere", seed, left, several);
+    /* In order: the kept triangles are a subsequence of those before. */
+    size_t j = 0;
+    for (size_t t = 0; t < m.nt && j < nt; t++)
+        j += memcmp(before + 3 * t, m.tri + 3 * j, 3 * sizeof *before) == 0;
+    CHECK_MSG(j == nt, "single fans: the kept triangles are out of order");
+    CHECK_MSG(nt < m.nt && nt > m.nt / 4, "single fans: %zu of %zu triangles kept", nt, m.nt);
+}
+
 int main(void)
 {
     test_tiles_shallow_cut();
@@ -248,5 +314,9 @@ int main(void)
     test_inward_cap();
     test_whole_inward();
     test_open_cap();
+    for (uint32_t seed = 1; seed <= 3; seed++) {
+        test_single_fans(false, seed);
+        test_single_fans(true, seed);
+    }
     return TEST_SUMMARY();
 }

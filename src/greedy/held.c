@@ -14,7 +14,7 @@
  *    at points left with two fans (tsl_single_fans) dropped, and the front
  *    runs again from what is left (params.existing) to mesh the seams.
  * 1a. fragments, pieces of a few triangles beside a large one, are
- *    dropped (drop_specks);
+ *    dropped (drop_specks_and_count);
  * 1b. small holes the front's ear clipping could not close are reopened
  *    and meshed again by a front over the points near them (reopen_holes).
  * 2. diagonals are flipped where the two angles facing them add up to
@@ -32,7 +32,7 @@
 #define HOLE_CONTEXT 6.0
 
 /* Pieces of fewer triangles than this are dropped, when the mesh has a
- * piece of SPECK_BESIDE times more (drop_specks). */
+ * piece of SPECK_BESIDE times more (drop_specks_and_count). */
 #define SPECK_TRIANGLES 64
 #define SPECK_BESIDE 64
 
@@ -198,56 +198,62 @@ done:
  * that has one of SPECK_BESIDE times as many: fragments the fronts leave
  * where they meet beside the surface (a seam, a repaired hole), a few
  * triangles each, which would count as components of their own. Their
- * points are counted as closed in (their neighbours are on the mesh). */
-static tessel_status drop_specks(size_t n, gp_collect *all, uint8_t *fate)
+ * points are counted as closed in (their neighbours are on the mesh).
+ * Then the summary's counts of what is left: points used, left out (by
+ * fate[]), boundary edges, components, triangles. One labelling of the
+ * components serves both (dropping whole pieces leaves the others' as
+ * they are). */
+static tessel_status drop_specks_and_count(size_t n, gp_collect *all, uint8_t *fate,
+                                           tessel_recon_summary *summary)
 {
-    size_t ncomp = 0;
-    uint32_t *comp = tsl_alloc_array(all->count + 1, sizeof *comp);
-    tessel_status st = comp ? tsl_triangle_components(all->tris, all->count, n, comp, &ncomp)
-                            : TESSEL_ERR_NOMEM;
-    uint32_t *size = st ? NULL : tsl_calloc_array(ncomp + 1, sizeof *size);
-    if (!st && !size)
-        st = TESSEL_ERR_NOMEM;
+    uint32_t *root = tsl_alloc_array(n + 1, sizeof *root);
+    uint32_t *size = tsl_calloc_array(n + 1, sizeof *size);
+    uint64_t *sum = tsl_alloc_array(n + 1, sizeof *sum);
+    uint8_t *used = tsl_calloc_array(n + 1, 1);
+    tessel_status s = root && size && sum && used ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    if (s)
+        goto done;
+    tsl_vertex_components(all->tris, all->count, n, root);
     uint32_t most = 0;
-    for (size_t t = 0; !st && t < all->count; t++)
-        most = ++size[comp[t]] > most ? size[comp[t]] : most;
-    size_t w = 0;
-    for (size_t t = 0; !st && most >= SPECK_BESIDE * SPECK_TRIANGLES && t < all->count; t++) {
-        uint32_t *v = all->tris + 3 * t;
-        if (size[comp[t]] < SPECK_TRIANGLES) {
-            fate[v[0]] = fate[v[1]] = fate[v[2]] = FATE_CLOSED_IN;
-            continue;
+    for (size_t t = 0; t < all->count; t++) {
+        uint32_t r = root[all->tris[3 * t]];
+        most = ++size[r] > most ? size[r] : most;
+    }
+    if (most >= SPECK_BESIDE * SPECK_TRIANGLES) {
+        size_t w = 0;
+        for (size_t t = 0; t < all->count; t++) {
+            uint32_t *v = all->tris + 3 * t;
+            if (size[root[v[0]]] < SPECK_TRIANGLES) {
+                fate[v[0]] = fate[v[1]] = fate[v[2]] = FATE_CLOSED_IN;
+                continue;
+            }
+            memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
         }
-        memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
-    }
-    if (!st && most >= SPECK_BESIDE * SPECK_TRIANGLES)
         all->count = w;
-    free(comp);
-    free(size);
-    return st;
-}
-
-/* The summary's counts of the mesh in all: points used, left out (by
- * fate[]), boundary edges, components, triangles. */
-static tessel_status summarize(size_t n, const gp_collect *all, const uint8_t *fate,
-                               tessel_recon_summary *summary)
-{
-    uint8_t *used = tsl_alloc_array(n + 1, 1);
-    tessel_status s = used ? tsl_mesh_counts(all->tris, all->count, n, used,
-                                             &summary->boundary_edges, &summary->components)
-                           : TESSEL_ERR_NOMEM;
-    if (s == TESSEL_OK) {
-        size_t count[FATE_UNTRIANGULATED + 1] = {0};
-        for (size_t i = 0; i < n; i++)
-            count[used[i] ? FATE_USED : fate[i]]++;
-        summary->points_used = count[FATE_USED];
-        summary->left_duplicate = count[FATE_DUPLICATE];
-        summary->left_isolated = count[FATE_ISOLATED];
-        summary->left_closed_in = count[FATE_CLOSED_IN];
-        summary->left_untriangulated = count[FATE_UNTRIANGULATED];
-        summary->triangles = all->count;
-        summary->points_in = n;
     }
+    /* Every vertex has a single fan: one boundary edge per open fan. */
+    tsl_open_fans(all->tris, all->count, n, sum);
+    for (size_t i = 0; i < 3 * all->count; i++)
+        used[all->tris[i]] = 1;
+    size_t count[FATE_UNTRIANGULATED + 1] = {0}, boundary = 0, components = 0;
+    for (size_t i = 0; i < n; i++) {
+        count[used[i] ? FATE_USED : fate[i]]++;
+        boundary += sum[i] != 0;
+        components += used[i] && root[i] == i;
+    }
+    summary->boundary_edges = boundary;
+    summary->components = components;
+    summary->points_used = count[FATE_USED];
+    summary->left_duplicate = count[FATE_DUPLICATE];
+    summary->left_isolated = count[FATE_ISOLATED];
+    summary->left_closed_in = count[FATE_CLOSED_IN];
+    summary->left_untriangulated = count[FATE_UNTRIANGULATED];
+    summary->triangles = all->count;
+    summary->points_in = n;
+done:
+    free(root);
+    free(size);
+    free(sum);
     free(used);
     return s;
 }
@@ -322,9 +328,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             s = tsl_gp_local_pass(cloud, sel, &hp, "greedy: hole repair", callbacks, all, fate,
                                   dirty, summary);
         if (s == TESSEL_OK)
-            s = drop_specks(n, all, fate);
-        if (s == TESSEL_OK)
-            s = summarize(n, all, fate, summary);
+            s = drop_specks_and_count(n, all, fate, summary);
         /* Joined or split, or more open: undone. */
         if (s == TESSEL_OK && (summary->components != before.components ||
                                summary->boundary_edges > before.boundary_edges)) {
@@ -443,9 +447,7 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         all_dirty = all_dirty || summary->reoriented != before;
     }
     if (s == TESSEL_OK)
-        s = drop_specks(n, &all, fate);
-    if (s == TESSEL_OK)
-        s = summarize(n, &all, fate, summary);
+        s = drop_specks_and_count(n, &all, fate, summary);
     bool holes = true;
     for (int round = 0; round < 3 && s == TESSEL_OK && holes && summary->boundary_edges; round++)
         s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, summary, round, &holes);

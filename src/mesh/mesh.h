@@ -85,15 +85,10 @@ void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *
  * less the sum over its incoming ones (tsl_mix64, a bijection, wrapping):
  * 0 exactly when v's fan is closed, if every vertex has a single fan. */
 void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, uint64_t *sum);
-/* Of a mesh whose vertices each have a single fan, consistently oriented
- * (as every method's output): used[v] (nv entries) whether v is on a
- * triangle, the boundary edges (one per open fan) and the connected
- * components (by shared vertices, which for single fans is by edges, as
- * tessel_mesh_check counts them). */
-tessel_status tsl_mesh_counts(const uint32_t *tri, size_t nt, size_t nv, uint8_t *used,
-                              size_t *boundary, size_t *components);
-/* The same components numbered 0 .. *ncomp in the order of their first
- * triangle: comp[t] for each of the nt triangles (none removed). */
+/* The connected components of a mesh (by shared vertices, which for
+ * single fans is by edges, as tessel_mesh_check counts them) numbered
+ * 0 .. *ncomp in the order of their first triangle: comp[t] for each of
+ * the nt triangles (none removed). */
 tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *comp,
                                       size_t *ncomp);
 
