@@ -7,10 +7,11 @@
  * representatives' spacing (a hand against a thigh) it can step from one
  * onto the other as if they were one sheet, and mesh the whole limb behind
  * the step inside out. Locally the flipped limb is flawless; only a global
- * test sees it. A ray from a triangle's centroid along its normal crosses a
- * closed surface an odd number of times exactly when the normal points
- * inward. Every triangle votes so; the votes are averaged over a few rings
- * of neighbours (a ray through a hole or along an edge miscounts); a
+ * test sees it. A ray from a triangle's centroid towards the side its
+ * normal points to crosses a closed surface an odd number of times exactly
+ * when the normal points inward. Every triangle votes so; the votes are
+ * averaged over a few rings of neighbours (a ray through a hole
+ * miscounts); a
  * connected region voting inward is marked for flipping when it holds
  * fewer than half of its component's triangles, the component's own
  * orientation being the front's business (orient_components). The
@@ -32,15 +33,12 @@
 #include <string.h>
 
 #define NONE TESSEL_NONE
-/* Grid cells at most (the cell grows to stay under). */
-#define MAX_CELLS (1u << 22)
 /* Averaging rounds over edge neighbours. */
 #define SMOOTH_ROUNDS 12
 /* Smaller inward regions are left alone: too few rays to trust. */
 #define MIN_REGION 32
 /* Rays cast at most: larger meshes cast from a hashed sample of their
- * triangles (a ray crosses the whole grid, some hundred cells at 10^6
- * triangles), and the averaging carries the votes to the rest. */
+ * triangles, and the averaging carries the votes to the rest. */
 #define RAY_BUDGET 65536
 /* Normals whose signs disagree across more than 1 / UNSIGNED_SHARE of the
  * mesh's edges carry no side (unoriented normals: half of them). Oriented
@@ -48,13 +46,30 @@
  * the data files with tessel's normals. */
 #define UNSIGNED_SHARE 5
 
-/* A uniform grid over the mesh's box; each cell lists the triangles whose
- * boxes meet it (CSR). */
-typedef struct ray_grid {
-    double lo[3], cell;
-    int n[3];
+/* A ray of the sample: from a triangle's centroid along the axis nearest
+ * its normal, towards the side the normal points to (dir +1 or -1). Any
+ * direction on that side gives the parity; along an axis, the rays' feet
+ * (their other two coordinates) go in a 2D grid, and each triangle finds
+ * the few rays that can cross it there. The mesh needs no index of its own
+ * (10^7 points: a 3D grid of every triangle took 1.5 s for 65,536 rays). */
+typedef struct ray {
+    double o[3];
+    uint32_t tri, crossings;
+    int axis, dir;
+} ray;
+
+/* The rays along one axis k, by the cell of their foot (u, v) = the
+ * coordinates (k + 1) % 3 and (k + 2) % 3: a uniform grid over the feet's
+ * box, CSR. */
+typedef struct ray_feet {
+    double lo[2], inv_cell;
+    int n[2];
     uint32_t *start, *items;
-} ray_grid;
+    double *uv; /* the feet in the order of items */
+} ray_feet;
+
+/* Largest grid side of the feet (the cells follow their count). */
+#define FEET_SIDE 4096
 
 static void tri_points(const float *xyz, const uint32_t *v, double p[3][3])
 {
@@ -67,207 +82,122 @@ static int clampi(double x, int n)
     return x < 0.0 ? 0 : x >= (double)n ? n - 1 : (int)x;
 }
 
-static void cell_range(const ray_grid *g, const double p[3][3], int lo[3], int hi[3])
+static tessel_status feet_build(ray_feet *f, const ray *rays, const uint32_t *ids, size_t m,
+                                int k)
 {
-    for (int k = 0; k < 3; k++) {
-        double a = fmin(p[0][k], fmin(p[1][k], p[2][k]));
-        double b = fmax(p[0][k], fmax(p[1][k], p[2][k]));
-        lo[k] = clampi((a - g->lo[k]) / g->cell, g->n[k]);
-        hi[k] = clampi((b - g->lo[k]) / g->cell, g->n[k]);
+    int ku = (k + 1) % 3, kv = (k + 2) % 3;
+    double hi[2] = {-INFINITY, -INFINITY};
+    f->lo[0] = f->lo[1] = INFINITY;
+    for (size_t i = 0; i < m; i++) {
+        const double *o = rays[ids[i]].o;
+        f->lo[0] = fmin(f->lo[0], o[ku]);
+        f->lo[1] = fmin(f->lo[1], o[kv]);
+        hi[0] = fmax(hi[0], o[ku]);
+        hi[1] = fmax(hi[1], o[kv]);
     }
-}
-
-static size_t cell_id(const ray_grid *g, int x, int y, int z)
-{
-    return ((size_t)z * (size_t)g->n[1] + (size_t)y) * (size_t)g->n[0] + (size_t)x;
-}
-
-/* The box is the triangles': points no triangle uses (an outlier far
- * away) would only stretch the grid. Threaded; the items of a cell come
- * in any order, which changes no count. */
-static tessel_status grid_build(ray_grid *g, const float *xyz, const uint32_t *tri, size_t nt,
-                                int threads)
-{
-    double hi[3], len = 0.0;
-    for (int k = 0; k < 3; k++) {
-        g->lo[k] = INFINITY;
-        hi[k] = -INFINITY;
-    }
-    ptrdiff_t n = (ptrdiff_t)nt;
-    /* The edge lengths summed in order, so that the cell is the same for
-     * any thread count. */
-    double *edge = tsl_alloc_array(nt ? nt : 1, sizeof *edge);
-    if (!edge)
+    /* About one foot a cell over the box. */
+    double w = hi[0] - f->lo[0], h = hi[1] - f->lo[1];
+    double cell = sqrt(fmax(w * h, fmax(w, h) * fmax(w, h) / (double)FEET_SIDE) / (double)m);
+    if (!(cell > 0.0))
+        cell = 1.0;
+    f->inv_cell = 1.0 / cell;
+    f->n[0] = clampi(w * f->inv_cell + 1.0, FEET_SIDE) + 1;
+    f->n[1] = clampi(h * f->inv_cell + 1.0, FEET_SIDE) + 1;
+    size_t cells = (size_t)f->n[0] * (size_t)f->n[1];
+    f->start = tsl_calloc_array(cells + 1, sizeof *f->start);
+    f->items = tsl_alloc_array(m + 1, sizeof *f->items);
+    f->uv = tsl_alloc_array(2 * m + 1, sizeof *f->uv);
+    if (!f->start || !f->items || !f->uv)
         return TESSEL_ERR_NOMEM;
-    double lo0 = INFINITY, lo1 = INFINITY, lo2 = INFINITY;
-    double hi0 = -INFINITY, hi1 = -INFINITY, hi2 = -INFINITY;
-#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads)) \
-    reduction(min : lo0, lo1, lo2) reduction(max : hi0, hi1, hi2)
-    for (ptrdiff_t t = 0; t < n; t++) {
-        double p[3][3], d[3];
-        tri_points(xyz, tri + 3 * t, p);
-        for (int i = 0; i < 3; i++) {
-            lo0 = fmin(lo0, p[i][0]);
-            lo1 = fmin(lo1, p[i][1]);
-            lo2 = fmin(lo2, p[i][2]);
-            hi0 = fmax(hi0, p[i][0]);
-            hi1 = fmax(hi1, p[i][1]);
-            hi2 = fmax(hi2, p[i][2]);
-        }
-        tsl_sub(p[1], p[0], d);
-        edge[t] = tsl_norm(d);
-    }
-    for (size_t t = 0; t < nt; t++)
-        len += edge[t];
-    free(edge);
-    g->lo[0] = lo0, g->lo[1] = lo1, g->lo[2] = lo2;
-    hi[0] = hi0, hi[1] = hi1, hi[2] = hi2;
-    /* One mean edge a cell. A ray's cost is its triangle tests, and most of
-     * them are in the first cells, among the triangles around its origin;
-     * smaller cells hold fewer of them, for more (cheap) empty cells on
-     * the way out. Against two mean edges, the check took 0.12 s instead
-     * of 0.18 s on man.ply and 0.31 s instead of 0.51 s on
-     * elephant.pd.n05.ply (one core); below one edge it gained nothing. The
-     * cell changes no count: a crossing counts in the cell where it lies. */
-    double ext[3], top = 0.0;
-    for (int k = 0; k < 3; k++) {
-        ext[k] = hi[k] - g->lo[k];
-        top = fmax(top, ext[k]);
-    }
-    g->cell = len / (double)nt;
-    if (!(g->cell > 0.0))
-        g->cell = top > 0.0 ? top : 1.0;
-    for (;;) {
-        double cells = 1.0;
-        for (int k = 0; k < 3; k++)
-            cells *= floor(ext[k] / g->cell) + 1.0;
-        if (cells <= MAX_CELLS)
-            break;
-        g->cell *= 1.25;
-    }
-    size_t total = 1;
-    for (int k = 0; k < 3; k++) {
-        g->n[k] = (int)(ext[k] / g->cell) + 1;
-        total *= (size_t)g->n[k];
-    }
-    g->start = tsl_calloc_array(total + 1, sizeof *g->start);
-    if (!g->start)
+    size_t *cell_of = tsl_alloc_array(m + 1, sizeof *cell_of);
+    if (!cell_of)
         return TESSEL_ERR_NOMEM;
-    size_t entries = 0;
-    for (int pass = 0; pass < 2; pass++) {
-#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
-        for (ptrdiff_t t = 0; t < n; t++) {
-            double p[3][3];
-            int a[3], b[3];
-            tri_points(xyz, tri + 3 * t, p);
-            cell_range(g, p, a, b);
-            for (int z = a[2]; z <= b[2]; z++)
-                for (int y = a[1]; y <= b[1]; y++)
-                    for (int x = a[0]; x <= b[0]; x++) {
-                        size_t c = cell_id(g, x, y, z), at;
-                        if (pass == 0) {
-#pragma omp atomic
-                            g->start[c + 1]++;
-                            continue;
-                        }
-#pragma omp atomic capture
-                        at = g->start[c]++;
-                        g->items[at] = (uint32_t)t;
-                    }
-        }
-        if (pass == 0) {
-            for (size_t c = 0; c < total; c++)
-                g->start[c + 1] += g->start[c];
-            entries = g->start[total];
-            if (entries > UINT32_MAX ||
-                !(g->items = tsl_alloc_array(entries ? entries : 1, sizeof *g->items)))
-                return TESSEL_ERR_NOMEM;
-        }
+    for (size_t i = 0; i < m; i++) {
+        const double *o = rays[ids[i]].o;
+        cell_of[i] = (size_t)clampi((o[kv] - f->lo[1]) * f->inv_cell, f->n[1]) * (size_t)f->n[0] +
+                     (size_t)clampi((o[ku] - f->lo[0]) * f->inv_cell, f->n[0]);
+        f->start[cell_of[i] + 1]++;
+    }
+    for (size_t c = 0; c < cells; c++)
+        f->start[c + 1] += f->start[c];
+    for (size_t i = 0; i < m; i++)
+        f->items[f->start[cell_of[i]]++] = ids[i];
+    for (size_t i = 0; i < m; i++) {
+        f->uv[2 * i] = rays[f->items[i]].o[ku];
+        f->uv[2 * i + 1] = rays[f->items[i]].o[kv];
     }
     /* The fill advanced every start to the next cell's; shift back. */
-    memmove(g->start + 1, g->start, total * sizeof *g->start);
-    g->start[0] = 0;
+    memmove(f->start + 1, f->start, cells * sizeof *f->start);
+    f->start[0] = 0;
+    free(cell_of);
     return TESSEL_OK;
 }
 
-/* Parameter t > 0 where the ray o + t d meets the closed triangle p, or -1
- * (Moeller and Trumbore). */
-static double ray_hit(const double o[3], const double d[3], const double p[3][3])
+/* Side of point q of the directed line a -> b, as tsl_orient2d, with q
+ * moved by (e, e^2) for an infinitesimal e when it lies on the line
+ * (simulation of simplicity): a foot on an edge shared by two triangles
+ * lies in exactly one of them, and a ray through a vertex crosses once. */
+static int side(const double a[2], const double b[2], const double q[2], double *o)
 {
-    double e1[3], e2[3], q[3], s[3], r[3];
-    tsl_sub(p[1], p[0], e1);
-    tsl_sub(p[2], p[0], e2);
-    tsl_cross(d, e2, q);
-    double det = tsl_dot(e1, q);
-    if (det == 0.0)
-        return -1.0;
-    double inv = 1.0 / det;
-    tsl_sub(o, p[0], s);
-    double u = tsl_dot(s, q) * inv;
-    if (u < 0.0 || u > 1.0)
-        return -1.0;
-    tsl_cross(s, e1, r);
-    double v = tsl_dot(d, r) * inv;
-    if (v < 0.0 || u + v > 1.0)
-        return -1.0;
-    return tsl_dot(e2, r) * inv;
+    *o = tsl_orient2d(a, b, q);
+    if (*o != 0.0)
+        return *o > 0.0 ? 1 : -1;
+    if (a[1] != b[1])
+        return a[1] > b[1] ? 1 : -1;
+    return b[0] > a[0] ? 1 : b[0] < a[0] ? -1 : 0;
 }
 
-/* Crossings of the ray from triangle t's centroid along its normal with
- * the other triangles (3D DDA through the grid, Amanatides and Woo; a
- * crossing counts in the cell where it lies, so once). -1 for a degenerate
- * triangle. */
-static int crossings(const ray_grid *g, const float *xyz, const uint32_t *tri, uint32_t t)
+/* Counts on rays r of the feet f (axis k) that triangle x (points p) crosses
+ * ahead of their origin. */
+static void cross_rays(const ray_feet *f, ray *rays, int k, uint32_t x, const double p[3][3])
 {
-    double p[3][3], o[3], d[3], u[3], w[3];
-    tri_points(xyz, tri + 3 * (size_t)t, p);
-    tsl_sub(p[1], p[0], u);
-    tsl_sub(p[2], p[0], w);
-    tsl_cross(u, w, d);
-    if (!tsl_normalize(d))
-        return -1;
-    for (int k = 0; k < 3; k++)
-        o[k] = (p[0][k] + p[1][k] + p[2][k]) / 3.0;
-    int c[3], step[3];
-    double tmax[3], tdelta[3];
-    for (int k = 0; k < 3; k++) {
-        double x = (o[k] - g->lo[k]) / g->cell;
-        c[k] = clampi(x, g->n[k]);
-        if (d[k] > 0.0) {
-            step[k] = 1;
-            tdelta[k] = g->cell / d[k];
-            tmax[k] = ((double)(c[k] + 1) - x) * tdelta[k];
-        } else if (d[k] < 0.0) {
-            step[k] = -1;
-            tdelta[k] = -g->cell / d[k];
-            tmax[k] = (x - (double)c[k]) * tdelta[k];
-        } else {
-            step[k] = 0;
-            tdelta[k] = tmax[k] = INFINITY;
-        }
+    int ku = (k + 1) % 3, kv = (k + 2) % 3;
+    double a[3][2], lo[2], hi[2];
+    for (int i = 0; i < 3; i++) {
+        a[i][0] = p[i][ku];
+        a[i][1] = p[i][kv];
     }
-    int count = 0;
-    double tin = 0.0;
-    for (;;) {
-        int k = tmax[0] < tmax[1] ? (tmax[0] < tmax[2] ? 0 : 2) : (tmax[1] < tmax[2] ? 1 : 2);
-        double tout = tmax[k];
-        size_t id = cell_id(g, c[0], c[1], c[2]);
-        for (uint32_t e = g->start[id]; e < g->start[id + 1]; e++) {
-            uint32_t x = g->items[e];
-            if (x == t)
-                continue;
-            double q[3][3];
-            tri_points(xyz, tri + 3 * (size_t)x, q);
-            double h = ray_hit(o, d, q);
-            if (h > 0.0 && h >= tin && h < tout)
-                count++;
-        }
-        c[k] += step[k];
-        if (c[k] < 0 || c[k] >= g->n[k])
-            return count;
-        tin = tout;
-        tmax[k] += tdelta[k];
+    for (int j = 0; j < 2; j++) {
+        lo[j] = a[0][j] < a[1][j] ? a[0][j] : a[1][j];
+        lo[j] = a[2][j] < lo[j] ? a[2][j] : lo[j];
+        hi[j] = a[0][j] > a[1][j] ? a[0][j] : a[1][j];
+        hi[j] = a[2][j] > hi[j] ? a[2][j] : hi[j];
     }
+    double area = NAN; /* when a foot is in the box */
+    int c0[2], c1[2];
+    for (int j = 0; j < 2; j++) {
+        double u0 = (lo[j] - f->lo[j]) * f->inv_cell, u1 = (hi[j] - f->lo[j]) * f->inv_cell;
+        if (u1 < 0.0 || u0 >= (double)f->n[j])
+            return;
+        c0[j] = clampi(u0, f->n[j]);
+        c1[j] = clampi(u1, f->n[j]);
+    }
+    for (int cv = c0[1]; cv <= c1[1]; cv++)
+        for (int cu = c0[0]; cu <= c1[0]; cu++) {
+            size_t c = (size_t)cv * (size_t)f->n[0] + (size_t)cu;
+            for (uint32_t e = f->start[c]; e < f->start[c + 1]; e++) {
+                const double *q = f->uv + 2 * (size_t)e;
+                if (q[0] < lo[0] || q[0] > hi[0] || q[1] < lo[1] || q[1] > hi[1])
+                    continue;
+                ray *r = &rays[f->items[e]];
+                if (r->tri == x)
+                    continue;
+                if (isnan(area))
+                    area = tsl_orient2d(a[0], a[1], a[2]);
+                if (area == 0.0) /* edge-on: the rays along k graze it */
+                    return;
+                double w[3];
+                int s0 = side(a[1], a[2], q, &w[0]);
+                if (side(a[2], a[0], q, &w[1]) != s0 || side(a[0], a[1], q, &w[2]) != s0)
+                    continue;
+                /* The crossing's coordinate along k, barycentric. */
+                double h = (w[0] * p[0][k] + w[1] * p[1][k] + w[2] * p[2][k]) / area;
+                if ((h - r->o[k]) * (double)r->dir > 0.0) {
+#pragma omp atomic
+                    r->crossings++;
+                }
+            }
+        }
 }
 
 /* A triangle's place in the ray sample (Wellons' lowbias32 mix): spread
@@ -494,20 +424,67 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
         return TESSEL_OK;
     if (nt > UINT32_MAX)
         return TESSEL_ERR_LIMIT;
-    ray_grid g = {0};
-    float *raw = tsl_alloc_array(nt, sizeof *raw);
-    tessel_status st = raw ? grid_build(&g, xyz, tri, nt, threads) : TESSEL_ERR_NOMEM;
+    uint32_t stride = (uint32_t)((nt + RAY_BUDGET - 1) / RAY_BUDGET);
+    size_t nr = 0;
+    for (size_t t = 0; t < nt; t++)
+        nr += mix((uint32_t)t) % stride == 0;
+    float *raw = tsl_calloc_array(nt, sizeof *raw);
+    ray *rays = tsl_alloc_array(nr + 1, sizeof *rays);
+    uint32_t *ids = tsl_alloc_array(nr + 1, sizeof *ids);
+    ray_feet feet[3];
+    memset(feet, 0, sizeof feet);
+    size_t along[3] = {0, 0, 0};
+    tessel_status st = raw && rays && ids ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    nr = 0;
+    for (size_t t = 0; st == TESSEL_OK && t < nt; t++) {
+        double p[3][3], u[3], w[3], d[3];
+        if (mix((uint32_t)t) % stride)
+            continue;
+        tri_points(xyz, tri + 3 * t, p);
+        tsl_sub(p[1], p[0], u);
+        tsl_sub(p[2], p[0], w);
+        tsl_cross(u, w, d);
+        if (!tsl_normalize(d))
+            continue; /* degenerate: no vote */
+        int k = fabs(d[0]) >= fabs(d[1]) ? (fabs(d[0]) >= fabs(d[2]) ? 0 : 2)
+                                         : (fabs(d[1]) >= fabs(d[2]) ? 1 : 2);
+        ray *r = &rays[nr++];
+        for (int i = 0; i < 3; i++)
+            r->o[i] = (p[0][i] + p[1][i] + p[2][i]) / 3.0;
+        r->tri = (uint32_t)t;
+        r->crossings = 0;
+        r->axis = k;
+        r->dir = d[k] > 0.0 ? 1 : -1;
+        along[k]++;
+    }
+    for (int k = 0; k < 3 && st == TESSEL_OK; k++) {
+        size_t m = 0;
+        for (size_t i = 0; i < nr; i++)
+            if (rays[i].axis == k)
+                ids[m++] = (uint32_t)i;
+        if (m)
+            st = feet_build(&feet[k], rays, ids, m, k);
+    }
     if (st == TESSEL_OK) {
         ptrdiff_t n = (ptrdiff_t)nt;
-        uint32_t stride = (uint32_t)((nt + RAY_BUDGET - 1) / RAY_BUDGET);
-#pragma omp parallel for schedule(dynamic, 256) num_threads(tsl_threads(threads))
+#pragma omp parallel for schedule(dynamic, 4096) num_threads(tsl_threads(threads))
         for (ptrdiff_t t = 0; t < n; t++) {
-            int c = mix((uint32_t)t) % stride ? -1 : crossings(&g, xyz, tri, (uint32_t)t);
-            raw[t] = c < 0 ? 0.0f : c % 2 ? -1.0f : 1.0f;
+            double p[3][3];
+            tri_points(xyz, tri + 3 * t, p);
+            for (int k = 0; k < 3; k++)
+                if (along[k])
+                    cross_rays(&feet[k], rays, k, (uint32_t)t, p);
         }
+        for (size_t i = 0; i < nr; i++)
+            raw[rays[i].tri] = rays[i].crossings % 2 ? -1.0f : 1.0f;
     }
-    free(g.start);
-    free(g.items);
+    for (int k = 0; k < 3; k++) {
+        free(feet[k].start);
+        free(feet[k].items);
+        free(feet[k].uv);
+    }
+    free(rays);
+    free(ids);
     if (st == TESSEL_OK)
         st = mark_regions(tri, nt, nv, raw, false, threads, mark, flipped);
     free(raw);
