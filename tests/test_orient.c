@@ -243,6 +243,75 @@ static void test_tiles_shallow_cut(void)
               "shallow cut: %zu of %zu triangles against the first", against, nt);
 }
 
+/* A closed box whose top face, turned inward, sends its rays straight
+ * through vertices of the bottom face: the top and the sides are a grid of
+ * squares 3 units wide and the bottom one of unit squares, so every top
+ * triangle's centroid lies over a bottom vertex with six triangles around
+ * it. Counting each triangle the ray meets there would give six crossings
+ * (outward); a ray crosses the bottom once. */
+#define BOX 18
+static uint32_t box_id[BOX + 1][BOX + 1][BOX + 1];
+static float box_xyz[3 * 4 * (BOX + 1) * (BOX + 1)];
+static uint32_t box_tri[3 * 2 * 2 * BOX * BOX];
+static size_t box_nv, box_nt;
+
+static uint32_t box_vertex(int x, int y, int z)
+{
+    if (box_id[x][y][z] == TESSEL_NONE) {
+        box_xyz[3 * box_nv] = (float)x;
+        box_xyz[3 * box_nv + 1] = (float)y;
+        box_xyz[3 * box_nv + 2] = (float)z;
+        box_id[x][y][z] = (uint32_t)box_nv++;
+    }
+    return box_id[x][y][z];
+}
+
+/* The squares of side `step` on the face of axis k at height `at`, facing
+ * +k when out is set (else -k), two triangles each. */
+static void box_face(int k, int at, int step, bool out)
+{
+    for (int a = 0; a < BOX; a += step)
+        for (int b = 0; b < BOX; b += step) {
+            int c[4][3], uv[4][2] = {{a, b}, {a + step, b}, {a + step, b + step}, {a, b + step}};
+            uint32_t v[4];
+            for (int i = 0; i < 4; i++) {
+                c[i][k] = at;
+                c[i][(k + 1) % 3] = uv[i][0];
+                c[i][(k + 2) % 3] = uv[i][1];
+                v[i] = box_vertex(c[i][0], c[i][1], c[i][2]);
+            }
+            uint32_t t[2][3] = {{v[0], v[1], v[2]}, {v[0], v[2], v[3]}};
+            for (int j = 0; j < 2; j++) {
+                uint32_t *w = box_tri + 3 * box_nt++;
+                w[0] = t[j][0];
+                w[1] = out ? t[j][1] : t[j][2];
+                w[2] = out ? t[j][2] : t[j][1];
+            }
+        }
+}
+
+static void test_rays_through_vertices(void)
+{
+    memset(box_id, 0xff, sizeof box_id);
+    box_nv = box_nt = 0;
+    box_face(2, BOX, 3, false); /* the top, turned inward: first */
+    size_t top = box_nt;
+    box_face(2, 0, 1, false);
+    for (int k = 0; k < 2; k++) {
+        box_face(k, 0, 3, false);
+        box_face(k, BOX, 3, true);
+    }
+    static uint8_t bmark[3 * 2 * 2 * BOX * BOX];
+    size_t flipped = 0;
+    CHECK(tsl_orient_check(box_xyz, box_nv, box_tri, box_nt, 2, bmark, &flipped) == TESSEL_OK);
+    size_t top_marked = count_marked(bmark, top);
+    /* The averaging takes the top's rim to its outward neighbours'
+     * side; nothing else may turn. */
+    CHECK_MSG(2 * top_marked > top && flipped == top_marked,
+              "rays through vertices: %zu of the %zu inward triangles found, %zu marked", top_marked,
+              top, flipped);
+}
+
 /* Border edges leaving vertex v among the nt triangles: more than one is
  * more than one fan. */
 static unsigned fans_at(const uint32_t *tri, size_t nt, uint32_t v)
@@ -314,6 +383,7 @@ int main(void)
     test_inward_cap();
     test_whole_inward();
     test_open_cap();
+    test_rays_through_vertices();
     for (uint32_t seed = 1; seed <= 3; seed++) {
         test_single_fans(false, seed);
         test_single_fans(true, seed);
