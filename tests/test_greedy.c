@@ -389,6 +389,46 @@ static void test_hole_rounds(void)
     tessel_cloud_free(&scan);
 }
 
+/* Many tiles, so that the seams close over six levels of cuts, on a
+ * uniformly random sample of the bundled scan's own surface: closed and in
+ * one piece like one tile's mesh, the same for 1 and 2 threads. (Seams
+ * whose fronts could seed left 170-353 boundary edges here, and seams
+ * whose guard did not see the triangles at their edge several pieces.) */
+static void test_many_tiles(void)
+{
+    tessel_cloud scan;
+    if (tessel_cloud_read(&scan, TESSEL_SAMPLE_DATA "/bunny.ply", NULL, NULL) != TESSEL_OK) {
+        CHECK(0);
+        return;
+    }
+    tessel_greedy_params p = tessel_greedy_params_default();
+    tessel_mesh surface, m[2];
+    tessel_recon_summary sum;
+    recon("scanned bunny", &scan, &p, &surface, &sum);
+    tessel_sample_params sp = tessel_sample_params_default();
+    sp.seed = 5;
+    sp.normals = 0;
+    tessel_cloud c;
+    CHECK(tessel_mesh_sample(&surface, 300000, &sp, NULL, &c) == TESSEL_OK);
+    p.tile_points = 8192;
+    for (int t = 0; t < 2; t++) {
+        p.threads = t + 1;
+        tessel_mesh_report rep = recon("random bunny in tiles", &c, &p, &m[t], &sum);
+        CHECK_MSG(sum.tiles == 64 && rep.boundary_edges == 0 && rep.components == 1,
+                  "random bunny in %zu tiles: %zu boundary edges, %zu components", sum.tiles,
+                  rep.boundary_edges, rep.components);
+    }
+    CHECK_MSG(m[1].triangle_count == m[0].triangle_count &&
+                  !memcmp(m[1].triangles, m[0].triangles,
+                          3 * m[0].triangle_count * sizeof *m[0].triangles),
+              "random bunny in tiles: 2 threads differ from 1");
+    tessel_mesh_free(&m[0]);
+    tessel_mesh_free(&m[1]);
+    tessel_mesh_free(&surface);
+    tessel_cloud_free(&c);
+    tessel_cloud_free(&scan);
+}
+
 static void test_random_spheres(void)
 {
     tessel_greedy_params p = tessel_greedy_params_default();
@@ -1078,6 +1118,7 @@ static void test_tiles(void)
 int main(void)
 {
     test_closed_surfaces();
+    test_many_tiles();
     test_open_and_hard();
     test_random_spheres();
     test_hole_rounds();

@@ -246,6 +246,15 @@ void tsl_index_order(const tessel_index *index, uint32_t *order);
 /* A point set cut into tiles by recursive median bisection (each part
  * along the longest side of its box) until each has at most max_points
  * points; the cut depends on the points and max_points only. */
+/* A cut of the bisection: the tiles [first, mid) lie below coordinate
+ * `at` along `axis`, [mid, end) above; the tiles' further cuts are the
+ * nodes low and high (TESSEL_NONE: a single tile there). */
+typedef struct tsl_tile_node {
+    double at;
+    uint32_t first, mid, end, low, high;
+    uint8_t axis, depth;
+} tsl_tile_node;
+
 typedef struct tsl_tiles {
     size_t count;      /* tiles */
     size_t *start;     /* count + 1: tile k's points are ids[start[k] .. start[k + 1]) */
@@ -254,6 +263,8 @@ typedef struct tsl_tiles {
     float *dcut;       /* per point: distance to the nearest cut bounding its
                           tile (INFINITY with one tile) */
     uint8_t *cut_axis; /* per point: the axis that cut runs across */
+    tsl_tile_node *node; /* the cuts in preorder (the first cuts the whole set) */
+    size_t nodes;
 } tsl_tiles;
 
 tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_tiles *t);

@@ -65,15 +65,16 @@ static void select_key(tile_key *a, size_t n, size_t k)
 }
 
 /* Cuts ids[lo .. hi) into tiles of at most max_points points (their ranges
- * appended to start[]); dcut[i] becomes the distance of point i to the
- * nearest cut bounding its tile, cut_axis[i] that cut's axis. */
-static void bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, size_t hi,
-                   size_t max_points, tsl_tiles *t)
+ * appended to start[], the cuts to node[]); dcut[i] becomes the distance
+ * of point i to the nearest cut bounding its tile, cut_axis[i] that cut's
+ * axis. Returns the node of the first cut, TESSEL_NONE for a single tile. */
+static uint32_t bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, size_t hi,
+                       size_t max_points, int depth, tsl_tiles *t)
 {
     size_t m = hi - lo;
     if (m <= max_points) {
         t->start[t->count++] = lo;
-        return;
+        return TESSEL_NONE;
     }
     float bl[3] = {INFINITY, INFINITY, INFINITY}, bh[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t u = lo; u < hi; u++)
@@ -104,8 +105,19 @@ static void bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, s
             t->cut_axis[keys[u].id] = (uint8_t)axis;
         }
     }
-    bisect(xyz, ids, keys, lo, lo + half, max_points, t);
-    bisect(xyz, ids, keys, lo + half, hi, max_points, t);
+    uint32_t id = (uint32_t)t->nodes++;
+    tsl_tile_node *nd = &t->node[id];
+    nd->at = cut;
+    nd->axis = (uint8_t)axis;
+    nd->depth = (uint8_t)depth;
+    nd->first = (uint32_t)t->count;
+    uint32_t low = bisect(xyz, ids, keys, lo, lo + half, max_points, depth + 1, t);
+    t->node[id].mid = (uint32_t)t->count;
+    uint32_t high = bisect(xyz, ids, keys, lo + half, hi, max_points, depth + 1, t);
+    t->node[id].low = low;
+    t->node[id].high = high;
+    t->node[id].end = (uint32_t)t->count;
+    return id;
 }
 
 void tsl_tiles_free(tsl_tiles *t)
@@ -115,6 +127,7 @@ void tsl_tiles_free(tsl_tiles *t)
     free(t->tile_of);
     free(t->dcut);
     free(t->cut_axis);
+    free(t->node);
     memset(t, 0, sizeof *t);
 }
 
@@ -129,9 +142,10 @@ tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_t
     t->tile_of = tsl_alloc_array(n + 1, sizeof *t->tile_of);
     t->dcut = tsl_alloc_array(n + 1, sizeof *t->dcut);
     t->cut_axis = tsl_calloc_array(n + 1, 1);
+    t->node = tsl_alloc_array(cap + 1, sizeof *t->node);
     tile_key *keys = tsl_alloc_array(n + 1, sizeof *keys);
     size_t *fill = NULL;
-    if (!t->start || !t->ids || !t->tile_of || !t->dcut || !t->cut_axis || !keys) {
+    if (!t->start || !t->ids || !t->tile_of || !t->dcut || !t->cut_axis || !t->node || !keys) {
         free(keys);
         tsl_tiles_free(t);
         return TESSEL_ERR_NOMEM;
@@ -140,7 +154,7 @@ tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_t
         t->ids[i] = (uint32_t)i;
         t->dcut[i] = INFINITY;
     }
-    bisect(xyz, t->ids, keys, 0, n, max_points, t);
+    bisect(xyz, t->ids, keys, 0, n, max_points, 0, t);
     free(keys);
     t->start[t->count] = n;
     for (size_t k = 0; k < t->count; k++)

@@ -1214,6 +1214,8 @@ static tessel_status run(gp *g)
                 (s = tsl_gp_sweep(g, 0)) != TESSEL_OK)
                 return s;
         }
+        if (g->grow_only)
+            return TESSEL_OK;
         while (g->seed_cursor < g->n && st(g, g->seed_order[g->seed_cursor]) != ST_FREE)
             g->seed_cursor++;
         if (g->seed_cursor == g->n)
@@ -1252,14 +1254,16 @@ tessel_greedy_params tessel_greedy_params_default(void)
 
 /* One pass of the front over the cloud (sections 3-4) with checked
  * params; progress under `stage`. */
-tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                          const char *stage, const tessel_callbacks *callbacks,
-                          const tessel_triangle_sink *sink, uint8_t *fate,
-                          tessel_recon_summary *summary)
+static tessel_status front_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                bool grow_only, const char *stage,
+                                const tessel_callbacks *callbacks,
+                                const tessel_triangle_sink *sink, uint8_t *fate,
+                                tessel_recon_summary *summary)
 {
     const tessel_greedy_params p = *params;
     gp g;
     memset(&g, 0, sizeof g);
+    g.grow_only = grow_only;
     g.cloud = cloud;
     g.n = cloud->count;
     g.mu = p.mu;
@@ -1298,10 +1302,12 @@ tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params 
         for (size_t i = 0; i < g.uf_count; i++)
             g.sum.components += g.uf[i] == i;
         *summary = g.sum;
-        for (size_t i = 0; fate && i < g.n; i++)
-            fate[g.orig[i]] = (uint8_t)((g.state[i] & ST_MASK) == ST_DEAD
-                                            ? FATE_DUPLICATE + g.state[i] / ST_WHY
-                                            : FATE_USED);
+        for (size_t i = 0; fate && i < g.n; i++) {
+            int si = g.state[i] & ST_MASK;
+            fate[g.orig[i]] = (uint8_t)(si == ST_DEAD   ? FATE_DUPLICATE + g.state[i] / ST_WHY
+                                        : si == ST_FREE ? FATE_UNREACHED
+                                                        : FATE_USED);
+        }
         tsl_log(callbacks, TESSEL_LOG_DEBUG,
                 "%s: %zu of %zu points used, %zu triangles, %zu components, "
                 "%zu boundary edges, spacing %g",
@@ -1310,6 +1316,22 @@ tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params 
     }
     tsl_gp_free(&g);
     return s;
+}
+
+tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                          const char *stage, const tessel_callbacks *callbacks,
+                          const tessel_triangle_sink *sink, uint8_t *fate,
+                          tessel_recon_summary *summary)
+{
+    return front_pass(cloud, params, false, stage, callbacks, sink, fate, summary);
+}
+
+tessel_status tsl_gp_grow(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                          const char *stage, const tessel_callbacks *callbacks,
+                          const tessel_triangle_sink *sink, uint8_t *fate,
+                          tessel_recon_summary *summary)
+{
+    return front_pass(cloud, params, true, stage, callbacks, sink, fate, summary);
 }
 
 tessel_status tessel_reconstruct_greedy(const tessel_cloud *cloud,

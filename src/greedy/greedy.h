@@ -34,6 +34,9 @@ enum {
 /* What became of a point (tsl_gp_pass's fate[]): used, or why it was left
  * out (the summary's left_* counts). */
 enum { FATE_USED = 0, FATE_DUPLICATE, FATE_ISOLATED, FATE_CLOSED_IN, FATE_UNTRIANGULATED };
+/* A point a front that only grows (tsl_gp_grow) did not reach: not an
+ * outcome, only a mark for the caller's next pass. */
+#define FATE_UNREACHED (FATE_UNTRIANGULATED + 1)
 
 #define NONE TESSEL_NONE
 /* Boundary points are looked at again when a neighbour changes their fan,
@@ -143,6 +146,7 @@ typedef struct gp {
     bool mu_from_sampling; /* mu chosen in tsl_gp_init */
     uint32_t max_hole;
     int plane_axis;
+    bool grow_only;       /* no new seed: only from the existing triangles */
     const tessel_callbacks *cb;
     const char *stage;    /* progress label */
     const tessel_triangle_sink *sink;
@@ -401,6 +405,12 @@ enum { LINK_FAIL = 0, LINK_NEW, LINK_PREPEND, LINK_APPEND, LINK_CLOSE };
  * progress reported as `stage`; summary->seconds is left 0. fate (NULL, or
  * one entry per point) receives each point's FATE_*. */
 tessel_status tsl_gp_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                          const char *stage, const tessel_callbacks *callbacks,
+                          const tessel_triangle_sink *sink, uint8_t *fate,
+                          tessel_recon_summary *summary);
+/* The same from params.existing without a seed of its own: points the
+ * front cannot reach from them get FATE_UNREACHED. */
+tessel_status tsl_gp_grow(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           const char *stage, const tessel_callbacks *callbacks,
                           const tessel_triangle_sink *sink, uint8_t *fate,
                           tessel_recon_summary *summary);
