@@ -358,18 +358,31 @@ static void test_mu_from_sampling(void)
  * uniformly random samples of the bundled scan's own mesh (with a single
  * repair, without the rings, seeds 4, 6 and 8 kept 9, 4 and 4 boundary
  * edges). */
-static void test_hole_rounds(void)
+/* The bundled scan's own surface (greedy projection of its points), to
+ * sample uniformly. */
+static bool scanned_surface(tessel_mesh *surface)
 {
     tessel_cloud scan;
     if (tessel_cloud_read(&scan, TESSEL_SAMPLE_DATA "/bunny.ply", NULL, NULL) != TESSEL_OK) {
         CHECK(0);
-        return;
+        return false;
     }
     tessel_greedy_params p = tessel_greedy_params_default();
-    tessel_mesh surface;
     tessel_recon_summary sum;
-    tessel_mesh_report rep = recon("scanned bunny", &scan, &p, &surface, &sum);
+    tessel_mesh_report rep = recon("scanned bunny", &scan, &p, surface, &sum);
     CHECK(rep.boundary_edges == 0 && rep.components == 1);
+    tessel_cloud_free(&scan);
+    return true;
+}
+
+static void test_hole_rounds(void)
+{
+    tessel_mesh surface;
+    if (!scanned_surface(&surface))
+        return;
+    tessel_greedy_params p = tessel_greedy_params_default();
+    tessel_recon_summary sum;
+    tessel_mesh_report rep;
     const uint64_t seeds[] = {4, 6, 8};
     for (size_t i = 0; i < sizeof seeds / sizeof *seeds; i++) {
         tessel_sample_params sp = tessel_sample_params_default();
@@ -386,7 +399,6 @@ static void test_hole_rounds(void)
         tessel_cloud_free(&c);
     }
     tessel_mesh_free(&surface);
-    tessel_cloud_free(&scan);
 }
 
 /* Many tiles, so that the seams close over six levels of cuts, on a
@@ -396,15 +408,11 @@ static void test_hole_rounds(void)
  * whose guard did not see the triangles at their edge several pieces.) */
 static void test_many_tiles(void)
 {
-    tessel_cloud scan;
-    if (tessel_cloud_read(&scan, TESSEL_SAMPLE_DATA "/bunny.ply", NULL, NULL) != TESSEL_OK) {
-        CHECK(0);
-        return;
-    }
-    tessel_greedy_params p = tessel_greedy_params_default();
     tessel_mesh surface, m[2];
+    if (!scanned_surface(&surface))
+        return;
+    tessel_greedy_params p = tessel_greedy_params_default();
     tessel_recon_summary sum;
-    recon("scanned bunny", &scan, &p, &surface, &sum);
     tessel_sample_params sp = tessel_sample_params_default();
     sp.seed = 5;
     sp.normals = 0;
@@ -426,7 +434,6 @@ static void test_many_tiles(void)
     tessel_mesh_free(&m[1]);
     tessel_mesh_free(&surface);
     tessel_cloud_free(&c);
-    tessel_cloud_free(&scan);
 }
 
 static void test_random_spheres(void)

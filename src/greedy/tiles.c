@@ -37,22 +37,26 @@
  * triangles), as out of core (slabs.c). */
 #define TILE_CONTEXT 3.0
 
-/* Progress of the tiles: the calling thread reports the tiles finished;
- * a cancellation it hears stops every tile at its next report. */
-typedef struct tile_ctx {
+/* Progress of parts meshed in parallel (tiles, seams): the calling thread
+ * reports `stage` at base + scale * (parts finished) / parts; a
+ * cancellation it hears stops every part at its next report. */
+typedef struct part_ctx {
     const tessel_callbacks *user;
-    size_t tiles;
+    const char *stage;
+    double base, scale;
+    size_t parts;
     atomic_int *finished, *cancel;
-} tile_ctx;
+} part_ctx;
 
-static int tile_progress(void *data, const char *stage, double fraction)
+static int part_progress(void *data, const char *stage, double fraction)
 {
     (void)stage;
     (void)fraction;
-    tile_ctx *c = data;
+    part_ctx *c = data;
     if (omp_get_thread_num() == 0 &&
-        tsl_progress(c->user, "greedy",
-                     0.5 * (double)atomic_load(c->finished) / (double)c->tiles) != TESSEL_OK)
+        tsl_progress(c->user, c->stage,
+                     c->base + c->scale * (double)atomic_load(c->finished) / (double)c->parts) !=
+            TESSEL_OK)
         atomic_store(c->cancel, 1);
     return atomic_load(c->cancel);
 }
@@ -166,28 +170,6 @@ typedef struct seam_group {
     tessel_recon_summary sum;
     tessel_status st;
 } seam_group;
-
-/* Progress of the seams: the calling thread reports the groups finished
- * over the levels; a cancellation it hears stops every group. */
-typedef struct seam_ctx {
-    const tessel_callbacks *user;
-    double done, share;
-    size_t groups;
-    atomic_int *finished, *cancel;
-} seam_ctx;
-
-static int seam_progress(void *data, const char *stage, double fraction)
-{
-    (void)stage;
-    (void)fraction;
-    seam_ctx *c = data;
-    if (omp_get_thread_num() == 0 &&
-        tsl_progress(c->user, "greedy: seams",
-                     c->done + c->share * (double)atomic_load(c->finished) / (double)c->groups) !=
-            TESSEL_OK)
-        atomic_store(c->cancel, 1);
-    return atomic_load(c->cancel);
-}
 
 /* One group's front, grown from the triangles among its points; the
  * points flagged in frozen[] (by cloud index) take no new triangle. */
@@ -346,8 +328,8 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
         atomic_int cancel, finished;
         atomic_init(&cancel, 0);
         atomic_init(&finished, 0);
-        seam_ctx ctx = {callbacks, done, share, ng, &finished, &cancel};
-        tessel_callbacks cb = {seam_progress, NULL, &ctx};
+        part_ctx ctx = {callbacks, "greedy: seams", done, share, ng, &finished, &cancel};
+        tessel_callbacks cb = {part_progress, NULL, &ctx};
         long long count_g = (long long)ng;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(params->threads))
         for (long long ii = 0; ii < count_g; ii++) {
@@ -499,7 +481,7 @@ static tessel_status run_threads(void *unused, const tsl_gp_tiles_job *job)
     (void)unused;
     size_t nt = job->count;
     tessel_status *status = tsl_alloc_array(nt, sizeof *status);
-    tile_ctx *ctx = tsl_alloc_array(nt, sizeof *ctx);
+    part_ctx *ctx = tsl_alloc_array(nt, sizeof *ctx);
     tessel_callbacks *tcb = tsl_alloc_array(nt, sizeof *tcb);
     tessel_status st = TESSEL_ERR_NOMEM;
     if (!status || !ctx || !tcb)
@@ -508,8 +490,8 @@ static tessel_status run_threads(void *unused, const tsl_gp_tiles_job *job)
     atomic_init(&cancel, 0);
     atomic_init(&finished, 0);
     for (size_t k = 0; k < nt; k++) {
-        ctx[k] = (tile_ctx){job->callbacks, nt, &finished, &cancel};
-        tcb[k] = (tessel_callbacks){tile_progress, NULL, &ctx[k]};
+        ctx[k] = (part_ctx){job->callbacks, "greedy", 0.0, 0.5, nt, &finished, &cancel};
+        tcb[k] = (tessel_callbacks){part_progress, NULL, &ctx[k]};
     }
     long long count = (long long)nt;
 #pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(job->params->threads))
