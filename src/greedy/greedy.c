@@ -1489,6 +1489,8 @@ tessel_status tsl_gp_collect_emit(void *user, const uint32_t *tris, size_t count
 {
     gp_collect *c = user;
     size_t need;
+    if (count == 0) /* tris may be NULL then, which memcpy may not take */
+        return TESSEL_OK;
     if (!tsl_add_size(c->count, count, &need))
         return TESSEL_ERR_LIMIT;
     if (tsl_grow((void **)&c->tris, &c->cap, need, 3 * sizeof *c->tris))
