@@ -308,12 +308,18 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
         seam_group *x = &g[slot[pts.id[i]]];
         ids[(size_t)(x->ids - ids) + x->m++] = pts.id[i];
     }
-    /* The triangles among a group's points resume its front. */
+    /* The triangles among a group's points resume its front; a point with
+     * one beyond them (where long triangles join two groups' points) is
+     * frozen: its fan is not all there. */
     for (size_t i = 0; !st && i < list->count; i++) {
         const uint32_t *v = all->tris + 3 * (size_t)list->id[i];
         uint32_t s0 = slot[v[0]];
-        if (s0 == TESSEL_NONE || slot[v[1]] != s0 || slot[v[2]] != s0)
+        if (s0 == TESSEL_NONE || slot[v[1]] != s0 || slot[v[2]] != s0) {
+            for (int c = 0; c < 3; c++)
+                if (slot[v[c]] != TESSEL_NONE)
+                    frozen[v[c]] = 1;
             continue;
+        }
         seam_group *x = &g[s0];
         if (tsl_grow((void **)&x->inside, &x->cap_inside, x->ninside + 1,
                      3 * sizeof *x->inside)) {
