@@ -132,17 +132,14 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
 
 /* Flags in hole[] the vertices of the boundary loops of at most max_hole
  * edges; returns how many loops, or -1 without memory. Only the
- * half-edges between vertices of open fans (tsl_open_fans) are matched,
- * by sorting. */
-static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_hole,
-                        uint8_t *hole)
+ * half-edges between vertices of open fans (sum: tsl_open_fans of the
+ * mesh) are matched, by sorting. */
+static long small_loops(const uint32_t *tri, size_t nt, size_t n, const uint64_t *sum,
+                        uint32_t max_hole, uint8_t *hole)
 {
-    uint64_t *sum = tsl_alloc_array(n + 1, sizeof *sum), *half = NULL;
+    uint64_t *half = NULL;
     uint32_t *next = NULL;
     long loops = -1;
-    if (!sum)
-        return -1;
-    tsl_open_fans(tri, nt, n, sum);
     size_t nh = 0;
     for (size_t t = 0; t < nt; t++)
         for (int k = 0; k < 3; k++)
@@ -188,7 +185,6 @@ static long small_loops(const uint32_t *tri, size_t nt, size_t n, uint32_t max_h
         } while (x != v);
     }
 done:
-    free(sum);
     free(half);
     free(next);
     return loops;
@@ -202,15 +198,15 @@ done:
  * Then the summary's counts of what is left: points used, left out (by
  * fate[]), boundary edges, components, triangles. One labelling of the
  * components serves both (dropping whole pieces leaves the others' as
- * they are). */
+ * they are). sum (n entries) receives tsl_open_fans of what is left, which
+ * the hole repair reads next. */
 static tessel_status drop_specks_and_count(size_t n, gp_collect *all, uint8_t *fate,
-                                           tessel_recon_summary *summary)
+                                           uint64_t *sum, tessel_recon_summary *summary)
 {
     uint32_t *root = tsl_alloc_array(n + 1, sizeof *root);
     uint32_t *size = tsl_calloc_array(n + 1, sizeof *size);
-    uint64_t *sum = tsl_alloc_array(n + 1, sizeof *sum);
     uint8_t *used = tsl_calloc_array(n + 1, 1);
-    tessel_status s = root && size && sum && used ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    tessel_status s = root && size && used ? TESSEL_OK : TESSEL_ERR_NOMEM;
     if (s)
         goto done;
     tsl_vertex_components(all->tris, all->count, n, root);
@@ -253,7 +249,6 @@ static tessel_status drop_specks_and_count(size_t n, gp_collect *all, uint8_t *f
 done:
     free(root);
     free(size);
-    free(sum);
     free(used);
     return s;
 }
@@ -273,8 +268,8 @@ done:
  * triangles are flagged in dirty (also when undone: a few more to look at). */
 static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                   const tessel_callbacks *callbacks, gp_collect *all,
-                                  uint8_t *fate, uint8_t *dirty, tessel_recon_summary *summary,
-                                  int rings, bool *holes)
+                                  uint8_t *fate, uint8_t *dirty, uint64_t *open,
+                                  tessel_recon_summary *summary, int rings, bool *holes)
 {
     *holes = false;
     if (params->max_hole < 3)
@@ -283,7 +278,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
     uint8_t *hole = tsl_calloc_array(n + 1, 1), *touched = tsl_calloc_array(n + 1, 1);
     uint8_t *sel = tsl_calloc_array(n + 1, 1);
     long loops = hole && touched && sel
-                     ? small_loops(all->tris, all->count, n, params->max_hole, hole)
+                     ? small_loops(all->tris, all->count, n, open, params->max_hole, hole)
                      : -1;
     *holes = loops > 0;
     size_t before_count = all->count;
@@ -328,7 +323,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             s = tsl_gp_local_pass(cloud, sel, &hp, "greedy: hole repair", callbacks, all, fate,
                                   dirty, summary);
         if (s == TESSEL_OK)
-            s = drop_specks_and_count(n, all, fate, summary);
+            s = drop_specks_and_count(n, all, fate, open, summary);
         /* Joined or split, or more open: undone. */
         if (s == TESSEL_OK && (summary->components != before.components ||
                                summary->boundary_edges > before.boundary_edges)) {
@@ -336,6 +331,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             memcpy(fate, saved_fate, n);
             all->count = before_count;
             *summary = before;
+            tsl_open_fans(all->tris, all->count, n, open);
         }
     }
     free(hole);
@@ -446,11 +442,17 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         s = check_and_repair(cloud, params, callbacks, &all, fate, summary);
         all_dirty = all_dirty || summary->reoriented != before;
     }
+    /* The open fans of the mesh, from the count to each hole round. */
+    uint64_t *open = s == TESSEL_OK ? tsl_alloc_array(n + 1, sizeof *open) : NULL;
+    if (s == TESSEL_OK && !open)
+        s = TESSEL_ERR_NOMEM;
     if (s == TESSEL_OK)
-        s = drop_specks_and_count(n, &all, fate, summary);
+        s = drop_specks_and_count(n, &all, fate, open, summary);
     bool holes = true;
     for (int round = 0; round < 3 && s == TESSEL_OK && holes && summary->boundary_edges; round++)
-        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, summary, round, &holes);
+        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, open, summary, round,
+                         &holes);
+    free(open);
     if (s == TESSEL_OK && params->flip) {
         /* Added to the tiles' flips, when there were tiles. The flips
          * change no count of the summary. */
