@@ -1253,10 +1253,15 @@ tessel_status tsl_gp_init(gp *g)
     g->sum.mu = g->mu;
     g->m_cap = g->max_spacing * spacing;
     g->m_floor = 0.05 * spacing;
-    g->ell = 3.0 * spacing;
+    /* Edges reach mu times the nearest distance, which on uniformly random
+     * samples is often twice the mean: there 43% of the triangles of a 10^6
+     * bunny had an edge over 3 spacings (none on even samples). Long
+     * triangles are listed in every cell of the long grid their box meets,
+     * which the guard then walks (--stream: 6.9 -> 5.7 s, 160 -> 121 MiB). */
+    g->ell = ELL_MU * g->mu * spacing;
     g->delta = g->ell / sqrt(3.0);
     g->lg_inv = 1.0 / (2.0 * (g->mu * spacing + g->delta));
-    g->sg_inv = 1.0 / (SG_CELL * spacing);
+    g->sg_inv = 1.0 / g->ell;
 
     /* Exact duplicates (adjacent in dexel order): keep the first. */
     size_t ncols = (size_t)g->nu * g->nv;
