@@ -310,6 +310,14 @@ static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, con
 {
     if (nt >= UINT32_MAX) /* triangle ids are uint32_t, NONE the largest */
         return TESSEL_ERR_LIMIT;
+    /* Averages of votes none of which is inward are not inward: then no
+     * region turns, and the neighbours and rounds over the whole mesh are
+     * not needed (a clean 10^7-point sample: no inward vote, 1.6 s). */
+    bool inward = false;
+    for (size_t t = 0; t < nt && !inward; t++)
+        inward = raw[t] < 0.0f;
+    if (!inward)
+        return TESSEL_OK;
     /* Each array only while needed (10^7 points: 49 -> 33 bytes per
      * triangle at the peak, which is the whole reconstruction's). */
     uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb), *label = NULL, *comp = NULL, *queue = NULL;
