@@ -690,7 +690,7 @@ static tessel_status orient_components(af *s)
         free(open);
         return TESSEL_ERR_NOMEM;
     }
-    tsl_vertex_components(s->tri, s->nt, s->n, parent);
+    tsl_vertex_components(s->tri, s->nt, s->n, 1, parent);
     for (size_t i = 0; i < s->ne; i++)
         if (s->e[i].state != EDGE_CLOSED)
             open[tsl_uf_find(parent, s->e[i].from)] = 1;

@@ -199,7 +199,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, si
         goto done;
     /* Components (edge-connected: every vertex has a single fan). */
     size_t ncomp;
-    if ((st = tsl_triangle_components(tri, count, s->n, comp, &ncomp)))
+    if ((st = tsl_triangle_components(tri, count, s->n, threads, comp, &ncomp)))
         goto done;
     if (!(drop = tsl_alloc_array(ncomp + 1, sizeof *drop))) {
         st = TESSEL_ERR_NOMEM;

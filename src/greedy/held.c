@@ -201,7 +201,8 @@ done:
  * they are). sum (n entries) receives tsl_open_fans of what is left, which
  * the hole repair reads next. */
 static tessel_status drop_specks_and_count(size_t n, gp_collect *all, uint8_t *fate,
-                                           uint64_t *sum, tessel_recon_summary *summary)
+                                           uint64_t *sum, int threads,
+                                           tessel_recon_summary *summary)
 {
     uint32_t *root = tsl_alloc_array(n + 1, sizeof *root);
     uint32_t *size = tsl_calloc_array(n + 1, sizeof *size);
@@ -209,7 +210,7 @@ static tessel_status drop_specks_and_count(size_t n, gp_collect *all, uint8_t *f
     tessel_status s = root && size && used ? TESSEL_OK : TESSEL_ERR_NOMEM;
     if (s)
         goto done;
-    tsl_vertex_components(all->tris, all->count, n, root);
+    tsl_vertex_components(all->tris, all->count, n, threads, root);
     uint32_t most = 0;
     for (size_t t = 0; t < all->count; t++) {
         uint32_t r = root[all->tris[3 * t]];
@@ -323,7 +324,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
             s = tsl_gp_local_pass(cloud, sel, &hp, "greedy: hole repair", callbacks, all, fate,
                                   dirty, summary);
         if (s == TESSEL_OK)
-            s = drop_specks_and_count(n, all, fate, open, summary);
+            s = drop_specks_and_count(n, all, fate, open, params->threads, summary);
         /* Joined or split, or more open: undone. */
         if (s == TESSEL_OK && (summary->components != before.components ||
                                summary->boundary_edges > before.boundary_edges)) {
@@ -447,7 +448,7 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
     if (s == TESSEL_OK && !open)
         s = TESSEL_ERR_NOMEM;
     if (s == TESSEL_OK)
-        s = drop_specks_and_count(n, &all, fate, open, summary);
+        s = drop_specks_and_count(n, &all, fate, open, params->threads, summary);
     bool holes = true;
     for (int round = 0; round < 3 && s == TESSEL_OK && holes && summary->boundary_edges; round++)
         s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, open, summary, round,

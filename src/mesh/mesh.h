@@ -79,8 +79,9 @@ tessel_status tsl_vertex_corners(const uint32_t *tri, size_t nt, size_t nv, uint
 /* Connected components by shared vertices: root[v] (nv entries, filled)
  * is the smallest vertex of v's component (v itself for a vertex on no
  * triangle). Triangles whose first vertex is TESSEL_NONE (removed) are
- * skipped. */
-void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *root);
+ * skipped. Joined on `threads` threads (0: all), the same for any. */
+void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, int threads,
+                           uint32_t *root);
 /* sum[v] (nv entries) = the sum of mix(w) over v's outgoing edges v -> w
  * less the sum over its incoming ones (tsl_mix64, a bijection, wrapping):
  * 0 exactly when v's fan is closed, if every vertex has a single fan. */
@@ -89,8 +90,8 @@ void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, uint64_t *sum);
  * single fans is by edges, as tessel_mesh_check counts them) numbered
  * 0 .. *ncomp in the order of their first triangle: comp[t] for each of
  * the nt triangles (none removed). */
-tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *comp,
-                                      size_t *ncomp);
+tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, int threads,
+                                      uint32_t *comp, size_t *ncomp);
 
 /* ---- tiles oriented against each other (mesh/tile_orient.c) ----
  * Orients the tiles' components (comp[t] for triangle t of tri[0 .. count),

@@ -195,23 +195,68 @@ done:
     return st;
 }
 
-void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *root)
+/* Union-find shared by threads. A link is made only from a root to a
+ * smaller root, by compare-and-swap, and path halving only moves a
+ * non-root's parent to one of its ancestors: every set ends rooted at its
+ * smallest member, as tsl_uf_unite's do, whatever the interleaving. */
+static uint32_t find_shared(uint32_t *parent, uint32_t x)
 {
-    for (size_t v = 0; v < nv; v++)
-        root[v] = (uint32_t)v;
-    for (size_t t = 0; t < nt; t++) {
-        const uint32_t *c = tri + 3 * t;
-        if (c[0] == TESSEL_NONE)
-            continue;
-        tsl_uf_unite(root, c[0], c[1]);
-        tsl_uf_unite(root, c[0], c[2]);
+    for (;;) {
+        uint32_t p = __atomic_load_n(&parent[x], __ATOMIC_RELAXED);
+        if (p == x)
+            return x;
+        uint32_t g = __atomic_load_n(&parent[p], __ATOMIC_RELAXED);
+        if (g != p)
+            __atomic_store_n(&parent[x], g, __ATOMIC_RELAXED);
+        x = g;
     }
-    for (size_t v = 0; v < nv; v++)
-        root[v] = tsl_uf_find(root, (uint32_t)v);
 }
 
-tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, uint32_t *comp,
-                                      size_t *ncomp)
+static void unite_shared(uint32_t *parent, uint32_t a, uint32_t b)
+{
+    for (;;) {
+        a = find_shared(parent, a);
+        b = find_shared(parent, b);
+        if (a == b)
+            return;
+        uint32_t hi = a > b ? a : b, lo = a > b ? b : a, expect = hi;
+        if (__atomic_compare_exchange_n(&parent[hi], &expect, lo, false, __ATOMIC_RELAXED,
+                                        __ATOMIC_RELAXED))
+            return;
+    }
+}
+
+void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, int threads,
+                           uint32_t *root)
+{
+    ptrdiff_t n = (ptrdiff_t)nv, m = (ptrdiff_t)nt;
+#pragma omp parallel num_threads(tsl_threads(threads))
+    {
+#pragma omp for schedule(static)
+        for (ptrdiff_t v = 0; v < n; v++)
+            root[v] = (uint32_t)v;
+#pragma omp for schedule(static)
+        for (ptrdiff_t t = 0; t < m; t++) {
+            const uint32_t *c = tri + 3 * t;
+            if (c[0] == TESSEL_NONE)
+                continue;
+            unite_shared(root, c[0], c[1]);
+            unite_shared(root, c[0], c[2]);
+        }
+        /* No halving here: it could put back a parent over a root just
+         * written. */
+#pragma omp for schedule(static)
+        for (ptrdiff_t v = 0; v < n; v++) {
+            uint32_t r = (uint32_t)v, p;
+            while ((p = __atomic_load_n(&root[r], __ATOMIC_RELAXED)) != r)
+                r = p;
+            __atomic_store_n(&root[v], r, __ATOMIC_RELAXED);
+        }
+    }
+}
+
+tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv, int threads,
+                                      uint32_t *comp, size_t *ncomp)
 {
     uint32_t *root = tsl_alloc_array(nv + 1, sizeof *root);
     uint32_t *label = tsl_alloc_array(nv + 1, sizeof *label);
@@ -221,7 +266,7 @@ tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv,
         free(label);
         return TESSEL_ERR_NOMEM;
     }
-    tsl_vertex_components(tri, nt, nv, root);
+    tsl_vertex_components(tri, nt, nv, threads, root);
     for (size_t v = 0; v < nv; v++)
         label[v] = TESSEL_NONE;
     for (size_t t = 0; t < nt; t++) {

@@ -363,7 +363,7 @@ static tessel_status components(const tessel_mesh *m, uint32_t **comp, size_t **
         free(count);
         return TESSEL_ERR_NOMEM;
     }
-    tsl_vertex_components(m->triangles, nt, nv, parent);
+    tsl_vertex_components(m->triangles, nt, nv, 1, parent);
     for (size_t t = 0; t < nt; t++)
         count[parent[m->triangles[3 * t]]]++;
     *comp = parent;
