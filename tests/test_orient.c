@@ -376,8 +376,62 @@ static void test_single_fans(bool local, uint32_t seed)
     CHECK_MSG(nt < m.nt && nt > m.nt / 4, "single fans: %zu of %zu triangles kept", nt, m.nt);
 }
 
+/* Components of many pieces joined in parallel: the same roots (the
+ * smallest vertex of each piece) as a serial union-find, on 1, 2 and 4
+ * threads. Triangles stay within blocks of 64 vertices, a few join
+ * neighbouring blocks, some are removed (first vertex TESSEL_NONE). */
+static void test_components_threads(void)
+{
+    enum { NV = 1 << 18, NT = 3 * NV / 2 };
+    uint32_t *tri = malloc(3 * NT * sizeof *tri);
+    uint32_t *ref = malloc(NV * sizeof *ref), *root = malloc(NV * sizeof *root);
+    CHECK(tri && ref && root);
+    if (!tri || !ref || !root)
+        goto done;
+    uint32_t x = 7;
+    for (size_t t = 0; t < NT; t++) {
+        uint32_t r[4];
+        for (int k = 0; k < 4; k++)
+            r[k] = x = x * 1664525u + 1013904223u;
+        uint32_t base = (r[0] >> 8) % (NV / 64) * 64;
+        uint32_t span = (r[3] >> 20) % 500 == 0 ? 128 : 64;
+        for (int k = 0; k < 3; k++)
+            tri[3 * t + (size_t)k] = (base + (r[k + 1] >> 12) % span) % NV;
+        if ((r[3] >> 16) % 50 == 0)
+            tri[3 * t] = TESSEL_NONE;
+    }
+    for (uint32_t v = 0; v < NV; v++)
+        ref[v] = v;
+    for (size_t t = 0; t < NT; t++) {
+        const uint32_t *c = tri + 3 * t;
+        if (c[0] == TESSEL_NONE)
+            continue;
+        tsl_uf_unite(ref, c[0], c[1]);
+        tsl_uf_unite(ref, c[0], c[2]);
+    }
+    size_t pieces = 0;
+    for (uint32_t v = 0; v < NV; v++) {
+        ref[v] = tsl_uf_find(ref, v);
+        pieces += ref[v] == v;
+    }
+    CHECK_MSG(pieces > 1000 && pieces < NV / 2, "components: %zu pieces", pieces);
+    const int threads[3] = {1, 2, 4};
+    for (int i = 0; i < 3; i++) {
+        tsl_vertex_components(tri, NT, NV, threads[i], root);
+        size_t differ = 0;
+        for (uint32_t v = 0; v < NV; v++)
+            differ += root[v] != ref[v];
+        CHECK_MSG(differ == 0, "components on %d threads: %zu roots differ", threads[i], differ);
+    }
+done:
+    free(tri);
+    free(ref);
+    free(root);
+}
+
 int main(void)
 {
+    test_components_threads();
     test_tiles_shallow_cut();
     test_outward();
     test_inward_cap();

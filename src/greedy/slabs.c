@@ -153,7 +153,8 @@ static tessel_status orient_slab(const tsl_gp_slabs *s, const tessel_cloud *c, g
     uint8_t *drop = NULL;
     uint32_t *saved = tsl_alloc_array(3 * band_tris + 1, sizeof *saved);
     tessel_status st = comp && dcut && axis && saved
-                           ? tsl_triangle_components(all->tris, count, c->count, threads, comp, &ncomp)
+                           ? tsl_triangle_components(all->tris, count, c->count, threads, comp,
+                                                     &ncomp)
                            : TESSEL_ERR_NOMEM;
     if (st)
         goto done;

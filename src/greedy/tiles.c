@@ -95,7 +95,8 @@ static tessel_status orient_tiles(const tessel_cloud *cloud, gp_collect *all, co
     size_t count = all->count, ncomp = 0;
     uint32_t *comp = tsl_alloc_array(count + 1, sizeof *comp);
     uint8_t *drop = NULL;
-    tessel_status st = comp ? tsl_triangle_components(all->tris, count, cloud->count, threads, comp, &ncomp)
+    tessel_status st = comp ? tsl_triangle_components(all->tris, count, cloud->count, threads,
+                                                      comp, &ncomp)
                             : TESSEL_ERR_NOMEM;
     if (st)
         goto done;

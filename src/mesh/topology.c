@@ -243,8 +243,8 @@ void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, int thread
             unite_shared(root, c[0], c[1]);
             unite_shared(root, c[0], c[2]);
         }
-        /* No halving here: it could put back a parent over a root just
-         * written. */
+        /* Read-only walks here: a thread halving a path could overwrite
+         * a root just written with a vertex below it. */
 #pragma omp for schedule(static)
         for (ptrdiff_t v = 0; v < n; v++) {
             uint32_t r = (uint32_t)v, p;
