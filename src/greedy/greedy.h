@@ -442,9 +442,10 @@ bool tsl_gp_near_box(const tsl_gp_near *g, const double lo[3], const double hi[3
 void tsl_gp_near_free(tsl_gp_near *g);
 
 /* Flags in sel (n entries) every point within radius of a point flagged
- * in seed, and some points farther (the cells of tsl_gp_near). */
+ * in seed, and some points farther (the cells of tsl_gp_near), the points
+ * looked at on `threads` threads. */
 tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed, double radius,
-                                 uint8_t *sel);
+                                 int threads, uint8_t *sel);
 
 /* Leaves out of sel the points a front left out (fate[i] not FATE_USED)
  * but those within reach of a cut (dcut, NULL: none): such a point lies

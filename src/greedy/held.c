@@ -303,7 +303,7 @@ static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy
         memcpy(saved_fate, fate, n);
         tessel_recon_summary before = *summary;
         s = tsl_gp_select_near(cloud->xyz, n, hole, HOLE_CONTEXT * summary->mu * summary->spacing,
-                               sel);
+                               params->threads, sel);
         tsl_gp_select_meshed(n, fate, NULL, 0.0, sel);
         size_t w = 0;
         for (size_t t = 0; s == TESSEL_OK && t < all->count; t++) {

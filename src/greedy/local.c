@@ -104,11 +104,13 @@ void tsl_gp_near_free(tsl_gp_near *g)
 }
 
 tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed, double radius,
-                                 uint8_t *sel)
+                                 int threads, uint8_t *sel)
 {
     tsl_gp_near g;
     tessel_status st = tsl_gp_near_build(xyz, n, seed, radius, &g);
-    for (size_t i = 0; !st && i < n; i++) {
+    ptrdiff_t m = st ? 0 : (ptrdiff_t)n;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+    for (ptrdiff_t i = 0; i < m; i++) {
         double p[3];
         tsl_load(xyz + 3 * i, p);
         sel[i] |= tsl_gp_near_box(&g, p, p);

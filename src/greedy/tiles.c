@@ -433,7 +433,8 @@ static tessel_status close_seams(const tessel_cloud *cloud, const tsl_tiles *cut
     if (!st && left && !(again = tsl_calloc_array(n + 1, 1)))
         st = TESSEL_ERR_NOMEM;
     if (!st && left)
-        st = tsl_gp_select_near(cloud->xyz, n, frozen, TILE_CONTEXT * reach, again);
+        st = tsl_gp_select_near(cloud->xyz, n, frozen, TILE_CONTEXT * reach, params->threads,
+                                again);
     if (!st && left) {
         for (size_t p = 0; p < n; p++)
             again[p] = again[p] && sel[p] && (fate[p] == FATE_USED || frozen[p]);
@@ -668,7 +669,8 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         seed[i] |= open[i] != 0;
     }
     free(open);
-    if ((st = tsl_gp_select_near(cloud->xyz, n, seed, TILE_CONTEXT * reach, sel)))
+    if ((st = tsl_gp_select_near(cloud->xyz, n, seed, TILE_CONTEXT * reach, params->threads,
+                                 sel)))
         goto done;
     tsl_gp_select_meshed(n, fate, cut.dcut, reach, sel);
     tessel_greedy_params sp = *params;
