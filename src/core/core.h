@@ -243,9 +243,6 @@ void tsl_index_order(const tessel_index *index, uint32_t *order);
 
 /* ---- tiles (src/core/tiles.c) ---- */
 
-/* A point set cut into tiles by recursive median bisection (each part
- * along the longest side of its box) until each has at most max_points
- * points; the cut depends on the points and max_points only. */
 /* A cut of the bisection: the tiles [first, mid) lie below coordinate
  * `at` along `axis`, [mid, end) above; the tiles' further cuts are the
  * nodes low and high (TESSEL_NONE: a single tile there). */
@@ -254,6 +251,10 @@ typedef struct tsl_tile_node {
     uint32_t first, mid, end, low, high;
     uint8_t axis, depth;
 } tsl_tile_node;
+
+/* A point set cut into tiles by recursive median bisection (each part
+ * along the longest side of its box) until each has at most max_points
+ * points; the cut depends on the points and max_points only. */
 
 typedef struct tsl_tiles {
     size_t count;      /* tiles */

@@ -455,6 +455,24 @@ tessel_status tsl_gp_select_near(const float *xyz, size_t n, const uint8_t *seed
 void tsl_gp_select_meshed(size_t n, const uint8_t *fate, const float *dcut, double reach,
                           uint8_t *sel);
 
+/* The points ids[0 .. m) of cloud as a cloud of their own (positions,
+ * normals, viewpoint and offset). */
+tessel_status tsl_gp_subcloud(const tessel_cloud *cloud, const uint32_t *ids, size_t m,
+                             tessel_cloud *out);
+
+/* A front over the points ids[0 .. m) of cloud (at least 3, else nothing),
+ * resumed from inside (ninside triangles in indices into ids), the points
+ * flagged in frozen (by index into ids) taking no new triangle; grow_only:
+ * no seed of its own (tsl_gp_grow). Its triangles are appended to more in
+ * the cloud's indices and their vertices flagged in made, the points'
+ * fate[] rewritten, its summary in sum. */
+tessel_status tsl_gp_front_over(const tessel_cloud *cloud, const uint32_t *ids, size_t m,
+                                const uint32_t *inside, size_t ninside, const uint8_t *frozen,
+                                const tessel_greedy_params *params, bool grow_only,
+                                const char *stage, const tessel_callbacks *callbacks,
+                                gp_collect *more, uint8_t *fate, uint8_t *made,
+                                tessel_recon_summary *sum);
+
 /* A front over the points flagged in sel only (params checked; mu as
  * given), from the triangles of all among them (points with a triangle
  * beyond are frozen); its triangles appended to all and their vertices

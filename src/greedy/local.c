@@ -127,6 +127,62 @@ void tsl_gp_select_meshed(size_t n, const uint8_t *fate, const float *dcut, doub
             sel[i] = 0;
 }
 
+tessel_status tsl_gp_subcloud(const tessel_cloud *cloud, const uint32_t *ids, size_t m,
+                             tessel_cloud *out)
+{
+    tessel_status st = tessel_cloud_alloc(out, m, cloud->normals != NULL, 0);
+    if (st)
+        return st;
+    for (size_t i = 0; i < m; i++) {
+        memcpy(out->xyz + 3 * i, cloud->xyz + 3 * (size_t)ids[i], 3 * sizeof *out->xyz);
+        if (cloud->normals)
+            memcpy(out->normals + 3 * i, cloud->normals + 3 * (size_t)ids[i],
+                   3 * sizeof *out->normals);
+    }
+    memcpy(out->offset, cloud->offset, sizeof out->offset);
+    memcpy(out->viewpoint, cloud->viewpoint, sizeof out->viewpoint);
+    out->has_viewpoint = cloud->has_viewpoint;
+    return TESSEL_OK;
+}
+
+tessel_status tsl_gp_front_over(const tessel_cloud *cloud, const uint32_t *ids, size_t m,
+                                const uint32_t *inside, size_t ninside, const uint8_t *frozen,
+                                const tessel_greedy_params *params, bool grow_only,
+                                const char *stage, const tessel_callbacks *callbacks,
+                                gp_collect *more, uint8_t *fate, uint8_t *made,
+                                tessel_recon_summary *sum)
+{
+    if (m < 3)
+        return TESSEL_OK;
+    tessel_cloud lc;
+    tessel_status st = tsl_gp_subcloud(cloud, ids, m, &lc);
+    if (st)
+        return st;
+    uint8_t *lfate = tsl_alloc_array(m, 1);
+    if (!lfate)
+        st = TESSEL_ERR_NOMEM;
+    if (!st) {
+        tessel_greedy_params lp = *params;
+        lp.tile_points = 0;
+        lp.existing = inside;
+        lp.existing_count = ninside;
+        lp.frozen = frozen;
+        tessel_triangle_sink hold = {tsl_gp_collect_emit, more};
+        st = grow_only ? tsl_gp_grow(&lc, &lp, stage, callbacks, &hold, lfate, sum)
+                       : tsl_gp_pass(&lc, &lp, stage, callbacks, &hold, lfate, sum);
+    }
+    for (size_t i = 0; !st && i < 3 * more->count; i++) {
+        uint32_t w = ids[more->tris[i]];
+        more->tris[i] = w;
+        made[w] = 1;
+    }
+    for (size_t j = 0; !st && j < m; j++)
+        fate[ids[j]] = lfate[j];
+    tessel_cloud_free(&lc);
+    free(lfate);
+    return st;
+}
+
 tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
                                 const tessel_greedy_params *params, const char *stage,
                                 const tessel_callbacks *callbacks, gp_collect *all,
@@ -134,32 +190,17 @@ tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
 {
     size_t n = cloud->count, nt = all->count, m = 0;
     uint32_t *map = tsl_alloc_array(n + 1, sizeof *map), *back = NULL;
-    uint8_t *frozen = NULL, *lfate = NULL;
+    uint8_t *frozen = NULL;
     gp_collect inside = {NULL, 0, 0}, more = {NULL, 0, 0};
-    tessel_cloud lc;
-    memset(&lc, 0, sizeof lc);
     tessel_status st = map ? TESSEL_OK : TESSEL_ERR_NOMEM;
     for (size_t i = 0; !st && i < n; i++)
         map[i] = sel[i] ? (uint32_t)m++ : NONE;
     if (!st && (!(back = tsl_alloc_array(m + 1, sizeof *back)) ||
-                !(frozen = tsl_calloc_array(m + 1, 1)) ||
-                !(lfate = tsl_alloc_array(m + 1, 1)) ||
-                tessel_cloud_alloc(&lc, m, cloud->normals != NULL, 0)))
+                !(frozen = tsl_calloc_array(m + 1, 1))))
         st = TESSEL_ERR_NOMEM;
-    for (size_t i = 0; !st && i < n; i++) {
-        uint32_t j = map[i];
-        if (j == NONE)
-            continue;
-        back[j] = (uint32_t)i;
-        memcpy(lc.xyz + 3 * (size_t)j, cloud->xyz + 3 * i, 3 * sizeof *lc.xyz);
-        if (cloud->normals)
-            memcpy(lc.normals + 3 * (size_t)j, cloud->normals + 3 * i, 3 * sizeof *lc.normals);
-    }
-    if (!st) {
-        memcpy(lc.offset, cloud->offset, sizeof lc.offset);
-        memcpy(lc.viewpoint, cloud->viewpoint, sizeof lc.viewpoint);
-        lc.has_viewpoint = cloud->has_viewpoint;
-    }
+    for (size_t i = 0; !st && i < n; i++)
+        if (map[i] != NONE)
+            back[map[i]] = (uint32_t)i;
     /* The triangles among the points resume the front; a point with a
      * triangle beyond them is frozen (its fan is not all here). */
     for (size_t t = 0; !st && t < nt; t++) {
@@ -174,35 +215,18 @@ tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,
                 frozen[w[k]] = 1;
     }
     tessel_recon_summary local;
-    if (!st && m >= 3) {
-        tessel_greedy_params lp = *params;
-        lp.tile_points = 0;
-        lp.existing = inside.tris;
-        lp.existing_count = inside.count;
-        lp.frozen = frozen;
-        tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
-        st = tsl_gp_pass(&lc, &lp, stage, callbacks, &hold, lfate, &local);
-    }
-    for (size_t t = 0; !st && t < more.count; t++) {
-        uint32_t w[3];
-        for (int k = 0; k < 3; k++) {
-            w[k] = back[more.tris[3 * t + (size_t)k]];
-            made[w[k]] = 1;
-        }
-        st = tsl_gp_collect_emit(all, w, 1);
-    }
-    if (!st && m >= 3) {
-        for (size_t j = 0; j < m; j++)
-            fate[back[j]] = lfate[j];
-        summary->seeds += local.seeds;
-        summary->holes_closed += local.holes_closed;
-        summary->rejected_intersecting += local.rejected_intersecting;
-    }
-    tessel_cloud_free(&lc);
+    memset(&local, 0, sizeof local);
+    if (!st)
+        st = tsl_gp_front_over(cloud, back, m, inside.tris, inside.count, frozen, params, false,
+                               stage, callbacks, &more, fate, made, &local);
+    if (!st)
+        st = tsl_gp_collect_emit(all, more.tris, more.count);
+    summary->seeds += local.seeds;
+    summary->holes_closed += local.holes_closed;
+    summary->rejected_intersecting += local.rejected_intersecting;
     free(map);
     free(back);
     free(frozen);
-    free(lfate);
     free(inside.tris);
     free(more.tris);
     return st;

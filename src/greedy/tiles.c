@@ -61,26 +61,6 @@ static int part_progress(void *data, const char *stage, double fraction)
     return atomic_load(c->cancel);
 }
 
-/* The points ids[0 .. m) of cloud as a cloud of their own (positions,
- * normals, viewpoint and offset). */
-static tessel_status tile_cloud(const tessel_cloud *cloud, const uint32_t *ids, size_t m,
-                                tessel_cloud *out)
-{
-    tessel_status st = tessel_cloud_alloc(out, m, cloud->normals != NULL, 0);
-    if (st)
-        return st;
-    for (size_t i = 0; i < m; i++) {
-        memcpy(out->xyz + 3 * i, cloud->xyz + 3 * (size_t)ids[i], 3 * sizeof *out->xyz);
-        if (cloud->normals)
-            memcpy(out->normals + 3 * i, cloud->normals + 3 * (size_t)ids[i],
-                   3 * sizeof *out->normals);
-    }
-    memcpy(out->offset, cloud->offset, sizeof out->offset);
-    memcpy(out->viewpoint, cloud->viewpoint, sizeof out->viewpoint);
-    out->has_viewpoint = cloud->has_viewpoint;
-    return TESSEL_OK;
-}
-
 /* The tiles' components oriented against each other across the cuts (a
  * tile's front cannot know which side of a closed surface is out, and two
  * tiles that disagree leave a seam no front can close): tsl_orient_tiles
@@ -179,34 +159,14 @@ static tessel_status seam_front(const tessel_cloud *cloud, const tessel_greedy_p
                                 const tessel_callbacks *cb)
 {
     size_t m = g->m;
-    if (m < 3)
-        return TESSEL_OK;
-    tessel_cloud lc;
-    tessel_status st = tile_cloud(cloud, g->ids, m, &lc);
-    uint8_t *fr = st ? NULL : tsl_alloc_array(m, 1), *lfate = st ? NULL : tsl_alloc_array(m, 1);
-    if (!st && (!fr || !lfate))
-        st = TESSEL_ERR_NOMEM;
-    if (!st) {
-        for (size_t j = 0; j < m; j++)
-            fr[j] = frozen[g->ids[j]];
-        tessel_greedy_params lp = *params;
-        lp.tile_points = 0;
-        lp.existing = g->inside;
-        lp.existing_count = g->ninside;
-        lp.frozen = fr;
-        tessel_triangle_sink hold = {tsl_gp_collect_emit, &g->more};
-        st = tsl_gp_grow(&lc, &lp, "greedy: seams", cb, &hold, lfate, &g->sum);
-    }
-    for (size_t i = 0; !st && i < 3 * g->more.count; i++) {
-        uint32_t w = g->ids[g->more.tris[i]];
-        g->more.tris[i] = w;
-        made[w] = 1;
-    }
-    for (size_t j = 0; !st && j < m; j++)
-        fate[g->ids[j]] = lfate[j];
-    tessel_cloud_free(&lc);
+    uint8_t *fr = tsl_alloc_array(m + 1, 1);
+    if (!fr)
+        return TESSEL_ERR_NOMEM;
+    for (size_t j = 0; j < m; j++)
+        fr[j] = frozen[g->ids[j]];
+    tessel_status st = tsl_gp_front_over(cloud, g->ids, m, g->inside, g->ninside, fr, params, true,
+                                         "greedy: seams", cb, &g->more, fate, made, &g->sum);
     free(fr);
-    free(lfate);
     return st;
 }
 
@@ -458,7 +418,7 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
     size_t m = job->cut->start[k + 1] - job->cut->start[k];
     gp_collect *out = &job->parts[k];
     tessel_cloud sub;
-    tessel_status st = tile_cloud(job->cloud, ids, m, &sub);
+    tessel_status st = tsl_gp_subcloud(job->cloud, ids, m, &sub);
     if (st)
         return st;
     uint8_t *fate = tsl_alloc_array(m + 1, 1);
