@@ -25,6 +25,19 @@ extern "C" {
 TESSEL_API tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_status status,
                                                 tessel_cloud *cloud);
 
+/* tessel_cloud_read on every process of comm, each reading its part of the
+ * file: a binary PLY file's vertex records, a LAS file's point records or a
+ * LAZ file's chunks are split evenly between the processes, each decodes
+ * its own, and the parts are shared so that every process holds the whole
+ * cloud, the same as tessel_cloud_read gives (points, order, offset,
+ * floats, normals, colours). Other formats (and PLY files with an
+ * organized grid or records of varying size) are read by process 0 and
+ * shared. On failure every process returns the status, with the message of
+ * the first process that failed in *diag (may be NULL). */
+TESSEL_API tessel_status tessel_mpi_cloud_read(MPI_Comm comm, const char *path,
+                                               const tessel_read_params *params,
+                                               tessel_cloud *cloud, tessel_diag *diag);
+
 /* tessel_reconstruct_greedy with the tiles (tessel_greedy_params.tile_points)
  * meshed by all processes of comm, tile k by process k mod size, each with
  * params->threads threads, and sent to process 0, which joins them (seams,

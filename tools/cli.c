@@ -127,8 +127,15 @@ int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, con
         tessel_read_params rp = cli_read_params(common);
         st = tessel_cloud_read(cloud, path, &rp, &diag);
     }
+    return cli_accept_cloud(path, st, &diag, cloud, min_points, what, common);
+}
+
+int cli_accept_cloud(const char *path, tessel_status st, const tessel_diag *diag,
+                     tessel_cloud *cloud, size_t min_points, const char *what,
+                     const cli_common *common)
+{
     if (st != TESSEL_OK) {
-        cli_error_status(st, &diag, path);
+        cli_error_status(st, diag, path);
         return cli_exit_for_read(st);
     }
     size_t dropped = cloud->dropped_nonfinite;

@@ -50,11 +50,6 @@ void cli_error_status(tessel_status status, const tessel_diag *diag, const char 
 /* Exit code for a failed read / write / computation status. */
 int cli_exit_for_read(tessel_status status);
 int cli_exit_for_write(tessel_status status);
-/* Reads the cloud at path, printing any error. With fewer than min_points
- * points it says "PATH: N points: WHAT needs at least MIN" (and how many the
- * reader dropped) and frees the cloud. Points the reader dropped (a
- * coordinate NaN, infinite or beyond 1e15) get a warning unless
- * common->quiet. Returns CLI_OK or the exit code. */
 /* Hands a cloud already read (by reconstruct's method choice) to the
  * command it runs: the next cli_read_cloud of the same path takes it
  * instead of reading the file again, and the summaries say which method
@@ -66,8 +61,18 @@ void cli_chosen_json_end(void);
 /* One line on stderr saying which method was chosen and why (nothing
  * unless one was). */
 void cli_chosen_text(void);
+/* Reads the cloud at path, printing any error. With fewer than min_points
+ * points it says "PATH: N points: WHAT needs at least MIN" (and how many the
+ * reader dropped) and frees the cloud. Points the reader dropped (a
+ * coordinate NaN, infinite or beyond 1e15) get a warning unless
+ * common->quiet. Returns CLI_OK or the exit code. */
 int cli_read_cloud(const char *path, tessel_cloud *cloud, size_t min_points, const char *what,
                    const cli_common *common);
+/* cli_read_cloud's checks and messages for a cloud read otherwise (st and
+ * diag: the read's outcome). */
+int cli_accept_cloud(const char *path, tessel_status st, const tessel_diag *diag,
+                     tessel_cloud *cloud, size_t min_points, const char *what,
+                     const cli_common *common);
 
 /* Read parameters for an input file: the defaults, with --bbox. */
 tessel_read_params cli_read_params(const cli_common *common);

@@ -214,18 +214,22 @@ static int cmp_double(const void *pa, const void *pb)
     return (a > b) - (a < b);
 }
 
-tessel_status tsl_choose_offset(const double *xyz, size_t count, double offset[3])
+size_t tsl_offset_samples(size_t count)
+{
+    return count < OFFSET_SAMPLE ? count : OFFSET_SAMPLE;
+}
+
+tessel_status tsl_offset_of_samples(const double *sample, size_t m, double offset[3])
 {
     offset[0] = offset[1] = offset[2] = 0.0;
-    if (count == 0)
+    if (m == 0)
         return TESSEL_OK;
-    size_t m = count < OFFSET_SAMPLE ? count : OFFSET_SAMPLE;
     double *v = tsl_alloc_array(m, sizeof(double));
     if (!v)
         return TESSEL_ERR_NOMEM;
     for (int a = 0; a < 3; a++) {
         for (size_t j = 0; j < m; j++)
-            v[j] = xyz[3 * (size_t)((uint64_t)j * count / m) + (size_t)a];
+            v[j] = sample[3 * j + (size_t)a];
         /* The lower median: an actual sample value, so its floor is one of
          * the sampled points' floors (what makes the rule round-trip). */
         qsort(v, m, sizeof *v, cmp_double);
@@ -235,6 +239,20 @@ tessel_status tsl_choose_offset(const double *xyz, size_t count, double offset[3
     }
     free(v);
     return TESSEL_OK;
+}
+
+tessel_status tsl_choose_offset(const double *xyz, size_t count, double offset[3])
+{
+    offset[0] = offset[1] = offset[2] = 0.0;
+    size_t m = tsl_offset_samples(count);
+    double *sample = tsl_alloc_array(m + 1, 3 * sizeof(double));
+    if (!sample)
+        return TESSEL_ERR_NOMEM;
+    for (size_t j = 0; j < m; j++)
+        memcpy(sample + 3 * j, xyz + 3 * tsl_offset_sample_at(j, count, m), 3 * sizeof(double));
+    tessel_status st = tsl_offset_of_samples(sample, m, offset);
+    free(sample);
+    return st;
 }
 
 /* Coordinates beyond this magnitude are treated like NaN: no real survey is
@@ -340,6 +358,13 @@ tessel_status tsl_builder_flush(tsl_builder *b)
     b->flushed += pushed;
     b->count = 0;
     return st;
+}
+
+size_t tsl_builder_keep_finite(tsl_builder *b)
+{
+    size_t pushed = b->count;
+    b->count = keep_finite(b, NULL);
+    return pushed - b->count;
 }
 
 /* Shrinks the arrays to count points; failures to shrink are harmless. */

@@ -65,6 +65,10 @@ tessel_status tsl_builder_point(tsl_builder *b, const double xyz[3], const float
  * ignored. TESSEL_ERR_LIMIT past max_faces. */
 tessel_status tsl_builder_polygon(tsl_builder *b, const uint32_t *idx, size_t n);
 
+/* Drops the non-finite points pushed so far (finishing's rule), compacting
+ * the arrays; returns how many. */
+size_t tsl_builder_keep_finite(tsl_builder *b);
+
 /* Switches b to sink mode: from now on tsl_builder_point hands every chunk
  * (>= 1) points to fn, non-finite ones dropped and counted in b->dropped,
  * and reuses the arrays; tsl_builder_reserve never sizes beyond chunk.
@@ -103,6 +107,16 @@ void tsl_builder_free(tsl_builder *b);
  * (docs/formats.md). TESSEL_ERR_NOMEM when the sample cannot be allocated;
  * offset is then all 0. */
 tessel_status tsl_choose_offset(const double *xyz, size_t count, double offset[3]);
+/* The points the rule samples, for a reader that holds the cloud in parts
+ * (src/mpi/): m = tsl_offset_samples(count) of them, the j-th at index
+ * tsl_offset_sample_at(j, count, m); tsl_offset_of_samples gives the offset
+ * from their 3*m coordinates in that order. */
+size_t tsl_offset_samples(size_t count);
+static inline size_t tsl_offset_sample_at(size_t j, size_t count, size_t m)
+{
+    return (size_t)((uint64_t)j * count / m);
+}
+tessel_status tsl_offset_of_samples(const double *sample, size_t m, double offset[3]);
 
 /* The stored float for a world coordinate and an integer offset
  * (|world| <= 1e15, |offset| <= 1e15): float(t), t = world - offset taken
@@ -168,6 +182,13 @@ tessel_status tsl_parse_pcd(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag);
 tessel_status tsl_parse_las(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag);
+/* Part `part` of `parts` of a PLY file's vertex records (records
+ * count * part / parts up to count * (part + 1) / parts) into b, after the
+ * checks tsl_parse_ply makes of the header; *whole when the file cannot be
+ * read in parts (ascii, records of varying size up to the vertices, an
+ * organized grid or a viewpoint): nothing is read then. */
+tessel_status tsl_parse_ply_part(const uint8_t *data, size_t size, const char *name, size_t part,
+                                 size_t parts, tsl_builder *b, bool *whole, tessel_diag *diag);
 
 /* ---- LAS header and records, shared by the LAS and LAZ readers ---- */
 

@@ -427,7 +427,8 @@ static tessel_status parse_header(ply_reader *r, tsl_builder *b, bool *organized
 /* Checks the vertex layout, the announced counts against the limits and
  * the bytes that follow, and sizes the builder. */
 static tessel_status check_layout(ply_reader *r, tsl_builder *b, int want_faces,
-                                  bool organized, uint64_t w, uint64_t h, uint64_t org_line)
+                                  bool organized, uint64_t w, uint64_t h, uint64_t org_line,
+                                  bool reserve)
 {
     for (int k = 0; k < R_COUNT; k++)
         r->role_prop[k] = -1;
@@ -541,7 +542,7 @@ static tessel_status check_layout(ply_reader *r, tsl_builder *b, int want_faces,
                        (unsigned long long)avail);
     }
     tessel_status st = tsl_builder_attributes(b, r->has_normals, r->has_rgb);
-    if (st == TESSEL_OK)
+    if (st == TESSEL_OK && reserve)
         st = tsl_builder_reserve(b, (size_t)r->vertex_count,
                                  want_faces ? (size_t)faces : 0);
     if (st != TESSEL_OK)
@@ -624,6 +625,45 @@ static tessel_status truncated(ply_reader *r, const ply_elem *e, uint64_t rec)
                      (unsigned long long)rec, (unsigned long long)e->count);
 }
 
+/* count fixed-size vertex records of e from p on, all inside the data
+ * (checked by the caller). */
+static tessel_status fixed_vertices(ply_reader *r, tsl_builder *b, const ply_elem *e,
+                                    const uint8_t *p, uint64_t count)
+{
+    const int big = r->format == F_BE;
+    const ply_prop *px = &e->props[r->role_prop[R_X]], *py = &e->props[r->role_prop[R_Y]],
+                   *pz = &e->props[r->role_prop[R_Z]];
+    if (!r->has_normals && !r->has_rgb && px->type == py->type && px->type == pz->type &&
+        (px->type == T_F32 || px->type == T_F64)) {
+        /* The common case, x y z only, without the per-role loop. */
+        const size_t ox = px->offset, oy = py->offset, oz = pz->offset;
+        const int type = px->type;
+        for (uint64_t i = 0; i < count; i++, p += e->min_bytes) {
+            double xyz[3] = {decode(p + ox, type, big), decode(p + oy, type, big),
+                             decode(p + oz, type, big)};
+            tessel_status st = tsl_builder_point(b, xyz, NULL, NULL);
+            if (st != TESSEL_OK)
+                return fail_builder(r, st);
+        }
+        return TESSEL_OK;
+    }
+    double val[R_COUNT] = {0};
+    int roles[R_COUNT], nroles = 0;
+    for (int k = 0; k < R_COUNT; k++)
+        if (r->role_prop[k] >= 0)
+            roles[nroles++] = k;
+    for (uint64_t i = 0; i < count; i++, p += e->min_bytes) {
+        for (int k = 0; k < nroles; k++) {
+            const ply_prop *pp = &e->props[r->role_prop[roles[k]]];
+            val[roles[k]] = decode(p + pp->offset, pp->type, big);
+        }
+        tessel_status st = emit_vertex(r, b, val);
+        if (st != TESSEL_OK)
+            return st;
+    }
+    return TESSEL_OK;
+}
+
 static tessel_status binary_element(ply_reader *r, tsl_builder *b, const ply_elem *e,
                                     int want_faces)
 {
@@ -641,40 +681,9 @@ static tessel_status binary_element(ply_reader *r, tsl_builder *b, const ply_ele
         return TESSEL_OK;
     }
     if (e->fixed) {
-        /* Fixed-size vertex records, all inside the data (checked). */
-        const uint8_t *p = r->data + r->pos;
-        const ply_prop *px = &e->props[r->role_prop[R_X]], *py = &e->props[r->role_prop[R_Y]],
-                       *pz = &e->props[r->role_prop[R_Z]];
-        if (!r->has_normals && !r->has_rgb && px->type == py->type && px->type == pz->type &&
-            (px->type == T_F32 || px->type == T_F64)) {
-            /* The common case, x y z only, without the per-role loop. */
-            const size_t ox = px->offset, oy = py->offset, oz = pz->offset;
-            const int type = px->type;
-            for (uint64_t i = 0; i < e->count; i++, p += e->min_bytes) {
-                double xyz[3] = {decode(p + ox, type, big), decode(p + oy, type, big),
-                                 decode(p + oz, type, big)};
-                tessel_status st = tsl_builder_point(b, xyz, NULL, NULL);
-                if (st != TESSEL_OK)
-                    return fail_builder(r, st);
-            }
-            r->pos += (size_t)e->count * e->min_bytes;
-            return TESSEL_OK;
-        }
-        int roles[R_COUNT], nroles = 0;
-        for (int k = 0; k < R_COUNT; k++)
-            if (r->role_prop[k] >= 0)
-                roles[nroles++] = k;
-        for (uint64_t i = 0; i < e->count; i++, p += e->min_bytes) {
-            for (int k = 0; k < nroles; k++) {
-                const ply_prop *pp = &e->props[r->role_prop[roles[k]]];
-                val[roles[k]] = decode(p + pp->offset, pp->type, big);
-            }
-            tessel_status st = emit_vertex(r, b, val);
-            if (st != TESSEL_OK)
-                return st;
-        }
+        tessel_status st = fixed_vertices(r, b, e, r->data + r->pos, e->count);
         r->pos += (size_t)e->count * e->min_bytes;
-        return TESSEL_OK;
+        return st;
     }
     for (uint64_t i = 0; i < e->count; i++) {
         for (size_t k = 0; k < e->nprops; k++) {
@@ -811,7 +820,7 @@ tessel_status tsl_parse_ply(const uint8_t *data, size_t size, const char *name,
     uint64_t w = 0, h = 0, org_line = 0;
     tessel_status st = parse_header(&r, b, &organized, &w, &h, &org_line);
     if (st == TESSEL_OK)
-        st = check_layout(&r, b, want_faces, organized, w, h, org_line);
+        st = check_layout(&r, b, want_faces, organized, w, h, org_line, true);
     /* Elements in file order; stop once nothing wanted is left. */
     bool vertex_done = false, faces_left = false;
     for (size_t i = 0; st == TESSEL_OK && i < r.nelems; i++) {
@@ -834,6 +843,59 @@ tessel_status tsl_parse_ply(const uint8_t *data, size_t size, const char *name,
         free(r.elems[i].props);
     free(r.elems);
     free(r.poly);
+    return st;
+}
+
+/* The byte where the vertex records start when they can be read in parts:
+ * a binary file whose vertex records and every record before them have a
+ * fixed size, without the organized grid or viewpoint a whole read keeps;
+ * 0 otherwise. */
+static size_t vertex_start(const ply_reader *r, const tsl_builder *b, bool organized)
+{
+    if (r->format == F_ASCII || organized || b->has_viewpoint || !r->vertex->fixed)
+        return 0;
+    size_t at = r->pos;
+    for (const ply_elem *e = r->elems; e != r->vertex; e++) {
+        if (!e->fixed)
+            return 0;
+        at += (size_t)e->count * e->min_bytes;
+    }
+    return at;
+}
+
+tessel_status tsl_parse_ply_part(const uint8_t *data, size_t size, const char *name, size_t part,
+                                 size_t parts, tsl_builder *b, bool *whole, tessel_diag *diag)
+{
+    ply_reader r;
+    memset(&r, 0, sizeof r);
+    r.data = data;
+    r.size = size;
+    r.name = name;
+    r.diag = diag;
+    *whole = false;
+    bool organized;
+    uint64_t w = 0, h = 0, org_line = 0;
+    tessel_status st = parse_header(&r, b, &organized, &w, &h, &org_line);
+    if (st == TESSEL_OK)
+        st = check_layout(&r, b, 0, organized, w, h, org_line, false);
+    size_t at = st == TESSEL_OK ? vertex_start(&r, b, organized) : 0;
+    if (st == TESSEL_OK && at == 0)
+        *whole = true;
+    if (st == TESSEL_OK && at) {
+        /* check_layout found every record inside the data. */
+        const ply_elem *e = r.vertex;
+        uint64_t first = e->count * part / parts, last = e->count * (part + 1) / parts;
+        st = tsl_builder_reserve(b, (size_t)(last - first), 0);
+        if (st != TESSEL_OK)
+            st = fail_line(&r, e->line, st, "cannot hold %llu vertices: %s",
+                           (unsigned long long)(last - first), tessel_status_str(st));
+        else
+            st = fixed_vertices(&r, b, e, data + at + (size_t)first * e->min_bytes,
+                                last - first);
+    }
+    for (size_t i = 0; i < r.nelems; i++)
+        free(r.elems[i].props);
+    free(r.elems);
     return st;
 }
 

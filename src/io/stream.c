@@ -301,3 +301,128 @@ tessel_status tsl_cloud_stream(const char *path, const tessel_read_params *param
     close_input(&in);
     return st;
 }
+
+/* ---- reading in parts ---- */
+
+/* LAS and LAZ part: records n * part / parts up to n * (part + 1) / parts
+ * (LAZ: the LASzip chunks whose first point falls there), with the colour
+ * shift agreed by every part. */
+typedef struct part_job {
+    size_t part, parts;
+    tsl_any_fn any;
+    void *ctx;
+} part_job;
+
+/* The colour shift of records[0 .. n) agreed with the other parts; every
+ * part calls any once, a failed one too (after its failure, with 0). */
+static int agreed_shift(const part_job *j, const tsl_las_header *h, const uint8_t *records,
+                        size_t n, tessel_status st)
+{
+    if (!tsl_las_has_rgb(h))
+        return 0;
+    int mine = st == TESSEL_OK && tsl_las_rgb_shift(records, n, h);
+    return j->any(j->ctx, mine) ? 8 : 0;
+}
+
+static tessel_status part_laz(const input *in, const char *name, const part_job *j,
+                              tsl_builder *b, tessel_diag *diag)
+{
+    tsl_laz *z;
+    tessel_status st = tsl_laz_open_memory(&z, in->data, in->size, name, diag);
+    if (st != TESSEL_OK)
+        return st;
+    const tsl_laz_info *info = tsl_laz_get_info(z);
+    const tsl_las_header *h = &info->header;
+    uint8_t *select = NULL, *records = NULL;
+    uint64_t n = 0, first = 0, last = 0, mine = 0, before = 0;
+    size_t k0 = info->chunk_count, k1 = 0;
+    st = tsl_laz_select(z, b, &select, &n, diag);
+    if (st == TESSEL_OK) {
+        first = n * j->part / j->parts;
+        last = n * (j->part + 1) / j->parts;
+        /* This part's chunks: those starting in [first, last). */
+        uint64_t at = 0;
+        for (size_t k = 0; k < info->chunk_count; k++) {
+            uint64_t pts = tsl_laz_chunk_points(z, k);
+            if (select && !select[k])
+                continue;
+            if (at >= first && at < last) {
+                if (!mine)
+                    before = at; /* for messages, as stream_laz counts */
+                k0 = k < k0 ? k : k0;
+                k1 = k + 1;
+                mine += pts;
+            }
+            at += pts;
+        }
+        if (mine && !(records = tsl_alloc_array((size_t)mine, h->record_length))) {
+            tsl_diag_set(diag, name, 0, 0, 0, "cannot hold %llu decoded LAZ points",
+                         (unsigned long long)mine);
+            st = TESSEL_ERR_NOMEM;
+        }
+    }
+    size_t got = 0;
+    for (size_t k = k0; st == TESSEL_OK && k < k1; k++) {
+        if (select && !select[k])
+            continue;
+        st = tsl_laz_read_chunk(z, k, records + got * h->record_length, diag);
+        got += tsl_laz_chunk_points(z, k);
+    }
+    int shift = agreed_shift(j, h, records, got, st);
+    if (st == TESSEL_OK)
+        st = tsl_las_emit(records, got, h, shift, name,
+                          h->point_offset + before * h->record_length, b, diag);
+    free(records);
+    free(select);
+    tsl_laz_close(z);
+    return st;
+}
+
+static tessel_status part_las(const input *in, const char *name, const part_job *j,
+                              tsl_builder *b, tessel_diag *diag)
+{
+    tsl_las_header h;
+    size_t n;
+    tessel_status st = tsl_las_check(in->data, in->size, name, &h, &n, diag);
+    if (st != TESSEL_OK)
+        return st;
+    if (h.compressed)
+        return part_laz(in, name, j, b, diag);
+    size_t first = (size_t)((uint64_t)n * j->part / j->parts),
+           last = (size_t)((uint64_t)n * (j->part + 1) / j->parts);
+    size_t rl = h.record_length;
+    const uint8_t *rec = in->data + h.point_offset + first * rl;
+    int shift = agreed_shift(j, &h, rec, last - first, TESSEL_OK);
+    return tsl_las_emit(rec, last - first, &h, shift, name, h.point_offset + first * rl, b, diag);
+}
+
+tessel_status tsl_cloud_read_part(const char *path, const tessel_read_params *params,
+                                  size_t part, size_t parts, tsl_any_fn any, void *ctx,
+                                  tsl_builder *b, bool *whole, tessel_diag *diag)
+{
+    if (diag)
+        memset(diag, 0, sizeof *diag);
+    memset(b, 0, sizeof *b);
+    *whole = false;
+    if (!any || parts == 0 || part >= parts)
+        return TESSEL_ERR_INVALID_ARG;
+    input in;
+    tessel_status st = open_input(path, &in, diag);
+    if (st != TESSEL_OK)
+        return st;
+    tsl_parse_fn parse;
+    st = tsl_read_setup(in.data, in.size, path, params, b, &parse, diag);
+    part_job j = {part, parts, any, ctx};
+    if (st == TESSEL_OK && parse == tsl_parse_las)
+        st = part_las(&in, path, &j, b, diag);
+    else if (st == TESSEL_OK && parse == tsl_parse_ply)
+        st = tsl_parse_ply_part(in.data, in.size, path, part, parts, b, whole, diag);
+    else if (st == TESSEL_OK)
+        *whole = true;
+    if (st == TESSEL_OK)
+        b->dropped = tsl_builder_keep_finite(b);
+    else if (diag && !diag->message[0])
+        tsl_diag_set(diag, path, 0, 0, 0, "%s", tessel_status_str(st));
+    close_input(&in);
+    return st;
+}

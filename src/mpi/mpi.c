@@ -16,6 +16,8 @@
 #endif
 
 #include "greedy/greedy.h"
+#include "io/io.h"
+#include "io/stream.h"
 #include "tessel_mpi.h"
 
 /* MPI counts are int: arrays go in pieces of at most 2^28 elements. */
@@ -101,6 +103,174 @@ tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_status stat
     if (h.grid)
         bcast_array(comm, root, cloud->grid, cells, MPI_UINT32_T, sizeof *cloud->grid);
     return TESSEL_OK;
+}
+
+/* ---- reading in parts ---- */
+
+static int any_part(void *ctx, int mine)
+{
+    int out = 0;
+    MPI_Allreduce(&mine, &out, 1, MPI_INT, MPI_LOR, *(MPI_Comm *)ctx);
+    return out;
+}
+
+/* The agreed status; on failure every process gets the diagnostic of the
+ * first process that failed. */
+static tessel_status agree_diag(MPI_Comm comm, tessel_status mine, tessel_diag *diag)
+{
+    tessel_status all = agree(comm, mine);
+    if (all == TESSEL_OK)
+        return all;
+    int rank, size, first;
+    MPI_Comm_rank(comm, &rank);
+    MPI_Comm_size(comm, &size);
+    int me = mine != TESSEL_OK ? rank : size;
+    MPI_Allreduce(&me, &first, 1, MPI_INT, MPI_MIN, comm);
+    tessel_diag d;
+    memset(&d, 0, sizeof d);
+    if (rank == first && diag)
+        d = *diag;
+    MPI_Bcast(&d, (int)sizeof d, MPI_BYTE, first, comm);
+    if (diag)
+        *diag = d;
+    return all;
+}
+
+/* Every process's share of the points, and where it starts. */
+typedef struct parts {
+    uint64_t *count, *start;
+    uint64_t total;
+} parts;
+
+/* The offset of the whole cloud (tsl_choose_offset's rule) from the
+ * samples each part holds. */
+static tessel_status part_offset(MPI_Comm comm, const parts *pt, int rank, int size,
+                                 const double *xyz, double offset[3])
+{
+    size_t m = tsl_offset_samples((size_t)pt->total);
+    double *sample = tsl_alloc_array(m + 1, 3 * sizeof *sample);
+    int *counts = tsl_alloc_array((size_t)size, sizeof *counts);
+    int *displs = tsl_alloc_array((size_t)size, sizeof *displs);
+    tessel_status st = sample && counts && displs ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    if ((st = agree(comm, st)) != TESSEL_OK)
+        goto done;
+    /* Sample j is point tsl_offset_sample_at(j): increasing in j, so the
+     * samples of the parts follow one another in the order of the parts. */
+    for (int r = 0; r < size; r++)
+        counts[r] = 0;
+    for (size_t j = 0, r = 0; j < m; j++) {
+        uint64_t at = tsl_offset_sample_at(j, (size_t)pt->total, m);
+        while (at >= pt->start[r] + pt->count[r])
+            r++;
+        counts[r] += 3;
+        if ((int)r == rank)
+            memcpy(sample + 3 * j, xyz + 3 * (at - pt->start[r]), 3 * sizeof *sample);
+    }
+    for (int r = 0, at = 0; r < size; r++) {
+        displs[r] = at;
+        at += counts[r];
+    }
+    MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DOUBLE, sample, counts, displs, MPI_DOUBLE, comm);
+    st = agree(comm, tsl_offset_of_samples(sample, m, offset));
+done:
+    free(sample);
+    free(counts);
+    free(displs);
+    return st;
+}
+
+/* The whole cloud on every process from each one's part b: offset chosen,
+ * floats as tessel_cloud_read stores them, the parts shared in order. */
+static tessel_status join_parts(MPI_Comm comm, const char *path, const tessel_read_params *params,
+                                tsl_builder *b, tessel_cloud *cloud, tessel_diag *diag)
+{
+    int rank, size;
+    MPI_Comm_rank(comm, &rank);
+    MPI_Comm_size(comm, &size);
+    parts pt = {tsl_calloc_array((size_t)size, sizeof *pt.count),
+                tsl_calloc_array((size_t)size, sizeof *pt.start), 0};
+    tessel_status st = agree(comm, pt.count && pt.start ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    if (st != TESSEL_OK)
+        goto done;
+    uint64_t mine = b->count, dropped = b->dropped, dropped_all = 0;
+    MPI_Allgather(&mine, 1, MPI_UINT64_T, pt.count, 1, MPI_UINT64_T, comm);
+    MPI_Allreduce(&dropped, &dropped_all, 1, MPI_UINT64_T, MPI_SUM, comm);
+    for (int r = 0; r < size; r++) {
+        pt.start[r] = pt.total;
+        pt.total += pt.count[r];
+    }
+    int attr[2] = {b->has_normals, b->has_rgb};
+    MPI_Allreduce(MPI_IN_PLACE, attr, 2, MPI_INT, MPI_LOR, comm);
+    uint64_t limit = params ? params->max_points : tessel_read_params_default().max_points;
+    if (pt.total > limit) {
+        tsl_diag_set(diag, path, 0, 0, 0, "%llu points, above the limit of %llu",
+                     (unsigned long long)pt.total, (unsigned long long)limit);
+        st = TESSEL_ERR_LIMIT;
+        goto done;
+    }
+    double offset[3];
+    if ((st = part_offset(comm, &pt, rank, size, b->xyz, offset)) != TESSEL_OK)
+        goto done;
+    st = tessel_cloud_alloc(cloud, (size_t)pt.total, attr[0], attr[1]);
+    if ((st = agree(comm, st)) != TESSEL_OK)
+        goto done;
+    memcpy(cloud->offset, offset, sizeof offset);
+    size_t at = (size_t)pt.start[rank];
+    for (size_t i = 0; i < 3 * b->count; i++)
+        cloud->xyz[3 * at + i] = tsl_local_coord(b->xyz[i], cloud->offset[i % 3]);
+    if (attr[0] && b->count)
+        memcpy(cloud->normals + 3 * at, b->normals, 3 * b->count * sizeof *cloud->normals);
+    if (attr[1] && b->count)
+        memcpy(cloud->rgb + 3 * at, b->rgb, 3 * b->count);
+    tsl_builder_free(b);
+    for (int r = 0; r < size; r++) {
+        size_t from = (size_t)pt.start[r], n = (size_t)pt.count[r];
+        bcast_array(comm, r, cloud->xyz + 3 * from, 3 * n, MPI_FLOAT, sizeof *cloud->xyz);
+        if (attr[0])
+            bcast_array(comm, r, cloud->normals + 3 * from, 3 * n, MPI_FLOAT,
+                        sizeof *cloud->normals);
+        if (attr[1])
+            bcast_array(comm, r, cloud->rgb + 3 * from, 3 * n, MPI_BYTE, 1);
+    }
+    cloud->dropped_nonfinite = (size_t)dropped_all;
+done:
+    free(pt.count);
+    free(pt.start);
+    return st;
+}
+
+tessel_status tessel_mpi_cloud_read(MPI_Comm comm, const char *path,
+                                    const tessel_read_params *params, tessel_cloud *cloud,
+                                    tessel_diag *diag)
+{
+    int rank, size;
+    MPI_Comm_rank(comm, &rank);
+    MPI_Comm_size(comm, &size);
+    memset(cloud, 0, sizeof *cloud);
+    tsl_builder b;
+    bool whole = false;
+    tessel_status st = tsl_cloud_read_part(path, params, (size_t)rank, (size_t)size, any_part,
+                                           &comm, &b, &whole, diag);
+    if ((st = agree_diag(comm, st, diag)) != TESSEL_OK) {
+        tsl_builder_free(&b);
+        return st;
+    }
+    int any_whole = whole;
+    MPI_Allreduce(MPI_IN_PLACE, &any_whole, 1, MPI_INT, MPI_LOR, comm);
+    if (any_whole) {
+        tsl_builder_free(&b);
+        st = rank == 0 ? tessel_cloud_read(cloud, path, params, diag) : TESSEL_OK;
+        if ((st = agree_diag(comm, st, diag)) != TESSEL_OK) {
+            tessel_cloud_free(cloud);
+            return st;
+        }
+        return tessel_mpi_cloud_share(comm, 0, TESSEL_OK, cloud);
+    }
+    st = join_parts(comm, path, params, &b, cloud, diag);
+    tsl_builder_free(&b);
+    if ((st = agree_diag(comm, st, diag)) != TESSEL_OK)
+        tessel_cloud_free(cloud);
+    return st;
 }
 
 typedef struct ranks {

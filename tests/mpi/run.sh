@@ -39,6 +39,45 @@ for np in 1 2 3 4; do
         rm -f "$work/m.ply"
     done
 done
+# Reading in parts: every process's cloud is the one-process read, bit for
+# bit (binary PLY with doubles far from the origin, normals, colours and
+# NaNs; LAS and LAZ of every point format, COPC in a box; every bad file
+# fails alike, with the same message).
+python3 - "$work/far.ply" <<'PY'
+import math, random, struct, sys
+random.seed(3)
+n = 5000
+with open(sys.argv[1], "wb") as f:
+    f.write(b"ply\nformat binary_little_endian 1.0\nelement vertex %d\n" % n
+            + b"".join(b"property double %s\n" % a for a in (b"x", b"y", b"z"))
+            + b"".join(b"property float %s\n" % a for a in (b"nx", b"ny", b"nz"))
+            + b"".join(b"property uchar %s\n" % a for a in (b"red", b"green", b"blue"))
+            + b"end_header\n")
+    for i in range(n):
+        t, u = 6.283 * random.random(), 3.1416 * random.random()
+        p = [math.cos(t) * math.sin(u), math.sin(t) * math.sin(u), math.cos(u)]
+        if i % 977 == 5:
+            p[0] = float("nan")
+        f.write(struct.pack("<3d3f3B", 512345.25 + 10 * p[0], 4321987.5 + 10 * p[1],
+                            100 + 10 * p[2], *p, i % 256, 7 * i % 256, 3))
+PY
+check "python3 writes the far cloud" $?
+for np in 1 2 3 4; do
+    "$MPIEXEC" --oversubscribe --allow-run-as-root -np "$np" "$build/test_mpi_read" \
+        "$work/far.ply" "$cloud" "$here"/../data/laz/*.la[sz] "$here"/../data/bad/* \
+        >"$work/out" 2>"$work/err"
+    check "-np $np: clouds read in parts are the one-process reads ($(grep -c '^ok' "$work/out") files)" $?
+done
+laz=$here/../data/laz/1.2-with-color.copc.laz
+"$build/tessel" reconstruct "$laz" "$work/ref.ply" --method greedy --tile-points 256 --quiet
+for np in 2 3; do
+    run_mpi "$np" reconstruct "$laz" "$work/m.ply" --tile-points 256 --quiet
+    st=$?
+    cmp -s "$work/ref.ply" "$work/m.ply"
+    check "-np $np, a COPC file read in parts: exit $st, the same bytes as tessel" $(( $? + st ))
+    rm -f "$work/m.ply"
+done
+
 # One tile (the default tile size): every process meshes it whole.
 "$build/tessel" reconstruct "$cloud" "$work/one.ply" --method greedy --quiet
 run_mpi 3 reconstruct "$cloud" "$work/m.ply" --quiet

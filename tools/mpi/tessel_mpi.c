@@ -1,6 +1,7 @@
 /* tessel-mpi reconstruct IN OUT [options]: greedy projection with its tiles
  * spread over the processes of MPI_COMM_WORLD (include/tessel_mpi.h,
- * docs/mpi.md). Process 0 reads the cloud, shares it and writes the mesh;
+ * docs/mpi.md). The processes read the cloud in parts and share them;
+ * process 0 writes the mesh;
  * the file is byte for byte what `tessel reconstruct IN OUT --method
  * greedy` writes with the same options, for any number of processes. A
  * failure anywhere stops every process and leaves no output. */
@@ -14,10 +15,11 @@ static const char help[] =
     "usage: mpirun -np N tessel-mpi reconstruct IN OUT [options]\n\n"
     "Greedy projection (as tessel reconstruct --method greedy) with the tiles\n"
     "meshed by N processes: tile k by process k mod N, each with --threads\n"
-    "threads. Process 0 reads IN, joins the tiles on the threads of the\n"
-    "processes on its machine (mpirun --bind-to none lets it use their cores)\n"
-    "and writes OUT; the output is the same bytes for any N and any thread\n"
-    "count. A cloud of at most --tile-points points is one tile: process 0\n"
+    "threads. The processes read IN in parts (binary PLY, LAS, LAZ; other\n"
+    "formats through process 0); process 0 joins the tiles on the threads of\n"
+    "the processes on its machine (mpirun --bind-to none lets it use their\n"
+    "cores) and writes OUT; the output is the same bytes for any N and any\n"
+    "thread count. A cloud of at most --tile-points points is one tile: process 0\n"
     "meshes it alone.\n\n"
     "Options (see tessel reconstruct --method greedy --help):\n"
     "  --mu M, --max-angle DEG, --min-angle DEG, --plane pca|axis,\n"
@@ -54,18 +56,18 @@ static tessel_status open_output(int rank, const char *out, const tessel_cloud *
 }
 
 static void print_summary(const tessel_recon_summary *s, size_t n, int procs, const char *out,
-                          double t_read, double t_share, double t_write, double total,
+                          double t_read, double t_write, double total,
                           const cli_common *common)
 {
     if (common->json) {
         printf("{\"method\": \"greedy\", \"processes\": %d, \"points\": %zu, "
                "\"points_used\": %zu, \"triangles\": %zu, \"components\": %zu, "
                "\"boundary_edges\": %zu, \"flips\": %zu, \"tiles\": %zu, "
-               "\"read_seconds\": %.6f, \"share_seconds\": %.6f, "
+               "\"read_seconds\": %.6f, "
                "\"reconstruct_seconds\": %.6f, \"write_seconds\": %.6f, \"seconds\": %.6f, "
                "\"peak_mib\": %.1f}\n",
                procs, n, s->points_used, s->triangles, s->components, s->boundary_edges,
-               s->flips, s->tiles, t_read, t_share, s->seconds, t_write, total, cli_peak_mib());
+               s->flips, s->tiles, t_read, s->seconds, t_write, total, cli_peak_mib());
     } else if (!common->quiet) {
         fprintf(stderr,
                 "tessel-mpi: greedy on %d process%s, %zu tile%s: %zu of %zu points used, "
@@ -74,9 +76,9 @@ static void print_summary(const tessel_recon_summary *s, size_t n, int procs, co
                 s->points_used, n, s->triangles, s->components, s->components == 1 ? "" : "s",
                 s->boundary_edges);
         fprintf(stderr,
-                "tessel-mpi: wrote %s in %.2f s (read %.2f s, share %.2f s, reconstruction "
+                "tessel-mpi: wrote %s in %.2f s (read %.2f s, reconstruction "
                 "%.2f s, write %.2f s; peak memory of process 0 %.0f MiB)\n",
-                out, total, t_read, t_share, s->seconds, t_write, cli_peak_mib());
+                out, total, t_read, s->seconds, t_write, cli_peak_mib());
     }
 }
 
@@ -102,18 +104,14 @@ static int reconstruct(int argc, char **argv, int rank, int procs)
     cli_apply_threads(&common);
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    int rc = rank == 0 ? cli_read_cloud(in, &cloud, 3, "a surface", &common) : CLI_OK;
-    double t_read = cli_now() - t0;
-    /* Every process exits with process 0's code for its input. */
-    MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    tessel_diag rdiag = {0};
+    tessel_read_params rp = cli_read_params(&common);
+    tessel_status st = tessel_mpi_cloud_read(MPI_COMM_WORLD, in, &rp, &cloud, &rdiag);
+    /* Every process holds the same cloud and diagnostic: the same code. */
+    int rc = cli_accept_cloud(in, st, &rdiag, &cloud, 3, "a surface", &common);
     if (rc != CLI_OK)
         return rc;
-    tessel_status st = tessel_mpi_cloud_share(MPI_COMM_WORLD, 0, TESSEL_OK, &cloud);
-    if (st != TESSEL_OK) {
-        cli_error("%s: could not share the cloud: %s", in, tessel_status_str(st));
-        return CLI_FAILURE;
-    }
-    double t_share = cli_now() - t0 - t_read;
+    double t_read = cli_now() - t0;
     tessel_mesh_writer *writer = NULL;
     if ((st = open_output(rank, out, &cloud, o.ascii, &writer)) != TESSEL_OK) {
         tessel_cloud_free(&cloud);
@@ -151,7 +149,7 @@ static int reconstruct(int argc, char **argv, int rank, int procs)
             cli_error_status(st, &diag, out);
             return cli_exit_for_write(st);
         }
-        print_summary(&sum, n, procs, out, t_read, t_share, t_write, cli_now() - t0, &common);
+        print_summary(&sum, n, procs, out, t_read, t_write, cli_now() - t0, &common);
     }
     return CLI_OK;
 }
