@@ -26,13 +26,16 @@ int laz_model_alloc(laz_model *m, uint32_t symbols)
             ++table_bits;
         table_size = 1u << table_bits;
     }
-    size_t words = 2 * (size_t)symbols + (table_size ? table_size + 2 : 0);
-    uint32_t *store = malloc(words * sizeof *store);
+    size_t words = 2 * (size_t)symbols + LAZ_DIST_PAD;
+    size_t bytes = words * sizeof(uint32_t) + (table_size ? table_size + 2 : 0) * sizeof(uint16_t);
+    uint32_t *store = malloc(bytes);
     if (!store)
         return -1;
     m->dist = store;
-    m->count = store + symbols;
-    m->table = table_size ? store + 2 * symbols : NULL;
+    for (uint32_t k = 0; k < LAZ_DIST_PAD; k++)
+        m->dist[symbols + k] = UINT32_MAX; /* above any dv: counts stop at the end */
+    m->count = store + symbols + LAZ_DIST_PAD;
+    m->table = table_size ? (uint16_t *)(m->count + symbols) : NULL;
     m->symbols = symbols;
     m->last_symbol = symbols - 1;
     m->table_size = table_size;
@@ -58,6 +61,24 @@ void laz_model_init(laz_model *m)
     m->until_update = m->update_cycle = (m->symbols + 6) >> 1;
 }
 
+/* The decoder table: table[s] is the last symbol whose distribution starts
+ * below s << table_shift (0 for s = 0), so the symbol of a value v lies in
+ * [table[v >> shift], table[(v >> shift) + 1]]. Written without branches:
+ * each symbol stores itself at the slot where it starts (the last one to
+ * start in a slot stays), then a running maximum fills the slots no symbol
+ * starts in. */
+static void laz_model_table(laz_model *m)
+{
+    uint16_t *t = m->table + 1;
+    uint32_t size = m->table_size;
+    memset(t, 0, ((size_t)size + 1) * sizeof *t);
+    for (uint32_t k = 0; k < m->symbols; k++)
+        t[m->dist[k] >> m->table_shift] = (uint16_t)k;
+    for (uint32_t s = 1; s <= size; s++)
+        t[s] = t[s] > t[s - 1] ? t[s] : t[s - 1];
+    m->table[0] = 0;
+}
+
 void laz_model_update(laz_model *m)
 {
     if ((m->total_count += m->update_cycle) > (1u << LAZ_DM_SHIFT)) {
@@ -66,24 +87,12 @@ void laz_model_update(laz_model *m)
             m->total_count += (m->count[n] = (m->count[n] + 1) >> 1);
     }
     uint32_t sum = 0, scale = 0x80000000u / m->total_count;
-    if (!m->table) {
-        for (uint32_t k = 0; k < m->symbols; k++) {
-            m->dist[k] = (scale * sum) >> (31 - LAZ_DM_SHIFT);
-            sum += m->count[k];
-        }
-    } else {
-        uint32_t s = 0;
-        for (uint32_t k = 0; k < m->symbols; k++) {
-            m->dist[k] = (scale * sum) >> (31 - LAZ_DM_SHIFT);
-            sum += m->count[k];
-            uint32_t w = m->dist[k] >> m->table_shift;
-            while (s < w)
-                m->table[++s] = k - 1;
-        }
-        m->table[0] = 0;
-        while (s <= m->table_size)
-            m->table[++s] = m->symbols - 1;
+    for (uint32_t k = 0; k < m->symbols; k++) {
+        m->dist[k] = (scale * sum) >> (31 - LAZ_DM_SHIFT);
+        sum += m->count[k];
     }
+    if (m->table)
+        laz_model_table(m);
     m->update_cycle = (5 * m->update_cycle) >> 2;
     uint32_t max_cycle = (m->symbols + 6) << 3;
     if (m->update_cycle > max_cycle)

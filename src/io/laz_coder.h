@@ -45,6 +45,10 @@ enum {
 
 enum { LAZ_MIN_LENGTH = 0x01000000u, LAZ_BM_SHIFT = 13, LAZ_DM_SHIFT = 15 };
 
+/* Entries of UINT32_MAX after a model's distribution, so that a search may
+ * read up to seven past the last symbol. */
+enum { LAZ_DIST_PAD = 7 };
+
 typedef struct laz_dec {
     const uint8_t *p, *end;
     uint32_t value, length;
@@ -56,9 +60,9 @@ typedef struct laz_bitmodel {
 } laz_bitmodel;
 
 typedef struct laz_model {
-    uint32_t *dist;        /* cumulative distribution, `symbols` entries */
+    uint32_t *dist;        /* cumulative distribution, `symbols` (+ LAZ_DIST_PAD) entries */
     uint32_t *count;       /* symbol counts, `symbols` entries */
-    uint32_t *table;       /* decoder table (table_size + 2), NULL for <= 16 symbols */
+    uint16_t *table;       /* decoder table (table_size + 2), NULL for <= 16 symbols */
     uint32_t symbols, last_symbol, table_size, table_shift;
     uint32_t total_count, update_cycle, until_update;
 } laz_model;
@@ -104,8 +108,12 @@ static inline uint32_t laz_byte(laz_dec *d)
     return 0;
 }
 
-static inline void laz_renorm(laz_dec *d)
+/* Renormalisation a byte at a time: the stream's last bytes and corrupt
+ * states (the encoder never leaves a zero range). */
+static inline void laz_renorm_slow(laz_dec *d)
 {
+    if (d->length >= LAZ_MIN_LENGTH)
+        return;
     if (d->length == 0) { /* only a corrupt state gets here; never loop on it */
         *d->fail |= LAZ_FAIL_CORRUPT;
         d->length = 0xFFFFFFFFu;
@@ -114,6 +122,39 @@ static inline void laz_renorm(laz_dec *d)
     do {
         d->value = (d->value << 8) | laz_byte(d);
     } while ((d->length <<= 8) < LAZ_MIN_LENGTH);
+}
+
+/* Leading zero bits of x > 0. */
+static inline unsigned laz_clz(uint32_t x)
+{
+#if defined(__GNUC__)
+    return (unsigned)__builtin_clz(x);
+#else
+    unsigned n = 0;
+    while (!(x & 0x80000000u)) {
+        x <<= 1;
+        ++n;
+    }
+    return n;
+#endif
+}
+
+/* Brings the range back to at least 2^24 after every symbol: the bytes it
+ * needs (0 to 3, from the range's leading zeros) shifted in at once from a
+ * 4-byte read, so that whether a symbol renormalises, a coin toss, costs no
+ * branch. Within 4 bytes of the stream's end, byte by byte. */
+LAZ_INLINE void laz_renorm(laz_dec *d)
+{
+    if (d->length == 0 || d->end - d->p < 4) {
+        laz_renorm_slow(d);
+        return;
+    }
+    unsigned shift = (laz_clz(d->length) >> 3) << 3; /* 0, 8, 16 or 24 */
+    uint64_t next = (uint64_t)d->p[0] << 24 | (uint64_t)d->p[1] << 16 |
+                    (uint64_t)d->p[2] << 8 | d->p[3];
+    d->value = (uint32_t)(((uint64_t)d->value << shift) | (next >> (32 - shift)));
+    d->length <<= shift;
+    d->p += shift >> 3;
 }
 
 LAZ_INLINE uint32_t laz_decode_bit(laz_dec *d, laz_bitmodel *m)
@@ -127,8 +168,7 @@ LAZ_INLINE uint32_t laz_decode_bit(laz_dec *d, laz_bitmodel *m)
         d->value -= x;
         d->length -= x;
     }
-    if (d->length < LAZ_MIN_LENGTH)
-        laz_renorm(d);
+    laz_renorm(d);
     if (--m->until_update == 0)
         laz_bitmodel_update(m);
     return sym;
@@ -136,27 +176,36 @@ LAZ_INLINE uint32_t laz_decode_bit(laz_dec *d, laz_bitmodel *m)
 
 LAZ_INLINE uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
 {
-    uint32_t n, sym, x, y = d->length;
+    uint32_t sym, x, y = d->length;
     if (m->table) {
         uint32_t dv = d->value / (d->length >>= LAZ_DM_SHIFT);
         uint32_t t = dv >> m->table_shift;
         if (t > m->table_size) /* value <= length keeps t in range; belt and braces */
             t = m->table_size;
+        const uint32_t *dist = m->dist;
         sym = m->table[t];
-        n = m->table[t + 1] + 1;
-        while (n > sym + 1) { /* bisection between the table's bounds */
-            uint32_t k = (sym + n) >> 1;
-            int above = m->dist[k] > dv; /* branch-free: the outcome is data */
-            n = above ? k : n;
-            sym = above ? sym : k;
+        uint32_t n = m->table[t + 1] + 1;
+        if (n - sym <= 8) { /* the usual narrow bin: count, without branches */
+            const uint32_t *q = dist + sym;
+            sym += (q[1] <= dv) + (q[2] <= dv) + (q[3] <= dv) + (q[4] <= dv) +
+                   (q[5] <= dv) + (q[6] <= dv) + (q[7] <= dv);
+        } else {
+            while (n > sym + 1) { /* bisection between the table's bounds */
+                uint32_t k = (sym + n) >> 1;
+                if (dist[k] > dv)
+                    n = k;
+                else
+                    sym = k;
+            }
         }
-        x = m->dist[sym] * d->length;
+        x = dist[sym] * d->length;
         if (sym != m->last_symbol)
             y = m->dist[sym + 1] * d->length;
     } else {
         x = sym = 0;
+        uint32_t n = m->symbols;
         d->length >>= LAZ_DM_SHIFT;
-        uint32_t k = (n = m->symbols) >> 1;
+        uint32_t k = n >> 1;
         do {
             uint32_t z = d->length * m->dist[k];
             if (z > d->value) {
@@ -170,8 +219,7 @@ LAZ_INLINE uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
     }
     d->value -= x;
     d->length = y - x;
-    if (d->length < LAZ_MIN_LENGTH)
-        laz_renorm(d);
+    laz_renorm(d);
     ++m->count[sym];
     if (--m->until_update == 0)
         laz_model_update(m);
@@ -183,8 +231,7 @@ static inline uint32_t laz_read_bits_short(laz_dec *d, uint32_t bits)
 {
     uint32_t sym = d->value / (d->length >>= bits);
     d->value -= d->length * sym;
-    if (d->length < LAZ_MIN_LENGTH)
-        laz_renorm(d);
+    laz_renorm(d);
     if (sym >> bits) {
         *d->fail |= LAZ_FAIL_CORRUPT;
         sym &= (1u << bits) - 1;
@@ -254,10 +301,10 @@ LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
         uint32_t k1 = k - ic->bits_high;
         c = (c << k1) | laz_read_bits(d, k1);
     }
-    /* c >= 2^(k-1): the positive interval, else the negative one */
-    if (c >= (1u << (k - 1)))
-        return laz_i32(c + 1);
-    return laz_i32(c - ((1u << k) - 1));
+    /* c >= 2^(k-1): the positive interval, else the negative one (a select,
+     * not a branch: the sign is a coin toss) */
+    uint32_t adj = c >= (1u << (k - 1)) ? 1u : 1u - (1u << k);
+    return laz_i32(c + adj);
 }
 
 /* The value predicted by pred, in [0, 2^bits) for bits < 32 (callers cast),

@@ -68,16 +68,92 @@ int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, siz
 
 /* RGB12 v2 and RGB14: the colour c from the last one (byte_used: 128
  * symbols, diff: six models of 256). */
-void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff[6],
-                    const uint16_t last[3], uint16_t c[3]);
+LAZ_INLINE void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff_model[6],
+                               const uint16_t last[3], uint16_t c[3])
+{
+    uint32_t sym = laz_decode_symbol(d, byte_used);
+    uint32_t r, g, b;
+    if (sym & 1)
+        r = (laz_decode_symbol(d, &diff_model[0]) + (last[0] & 0xFF)) & 0xFF;
+    else
+        r = last[0] & 0xFF;
+    if (sym & 2)
+        r |= ((laz_decode_symbol(d, &diff_model[1]) + (last[0] >> 8)) & 0xFF) << 8;
+    else
+        r |= last[0] & 0xFF00;
+    if (sym & 64) {
+        int32_t diff = (int32_t)(r & 0xFF) - (int32_t)(last[0] & 0xFF);
+        if (sym & 4)
+            g = (laz_decode_symbol(d, &diff_model[2]) +
+                 laz_clamp8(diff + (int32_t)(last[1] & 0xFF))) & 0xFF;
+        else
+            g = last[1] & 0xFF;
+        if (sym & 16) {
+            uint32_t corr = laz_decode_symbol(d, &diff_model[4]);
+            diff = (diff + ((int32_t)(g & 0xFF) - (int32_t)(last[1] & 0xFF))) / 2;
+            b = (corr + laz_clamp8(diff + (int32_t)(last[2] & 0xFF))) & 0xFF;
+        } else {
+            b = last[2] & 0xFF;
+        }
+        diff = (int32_t)(r >> 8) - (int32_t)(last[0] >> 8);
+        if (sym & 8)
+            g |= ((laz_decode_symbol(d, &diff_model[3]) +
+                   laz_clamp8(diff + (int32_t)(last[1] >> 8))) & 0xFF) << 8;
+        else
+            g |= last[1] & 0xFF00;
+        if (sym & 32) {
+            uint32_t corr = laz_decode_symbol(d, &diff_model[5]);
+            diff = (diff + ((int32_t)(g >> 8) - (int32_t)(last[1] >> 8))) / 2;
+            b |= ((corr + laz_clamp8(diff + (int32_t)(last[2] >> 8))) & 0xFF) << 8;
+        } else {
+            b |= last[2] & 0xFF00;
+        }
+    } else {
+        g = b = r;
+    }
+    c[0] = (uint16_t)r;
+    c[1] = (uint16_t)g;
+    c[2] = (uint16_t)b;
+}
 
 /* GPS time difference of GPSTIME11 v2 and POINT14, for the codes 0 and
  * 2..510: a multiple (-10..500) of the sequence's last difference plus a
  * corrector (ic: 32 bits, 9 contexts); updates the last difference after
  * four extreme multiples in a row. */
 enum { LAZ_GPS_MULTI = 500, LAZ_GPS_MULTI_MINUS = -10 };
-int32_t laz_gps_multi_diff(laz_ic *ic, laz_dec *d, int32_t *last_diff, int32_t *extreme,
-                           uint32_t multi);
+LAZ_INLINE int32_t laz_gps_multi_diff(laz_ic *ic, laz_dec *d, int32_t *last_diff,
+                                      int32_t *extreme, uint32_t multi)
+{
+    int32_t diff;
+    uint32_t last = (uint32_t)*last_diff;
+    if (multi == 0) {
+        diff = laz_ic_decompress(ic, d, 0, 7);
+        if (++*extreme > 3) {
+            *last_diff = diff;
+            *extreme = 0;
+        }
+    } else if (multi < LAZ_GPS_MULTI) {
+        diff = laz_ic_decompress(ic, d, laz_i32(multi * last), multi < 10 ? 2 : 3);
+    } else if (multi == LAZ_GPS_MULTI) {
+        diff = laz_ic_decompress(ic, d, laz_i32(LAZ_GPS_MULTI * last), 4);
+        if (++*extreme > 3) {
+            *last_diff = diff;
+            *extreme = 0;
+        }
+    } else {
+        int32_t mm = LAZ_GPS_MULTI - (int32_t)multi; /* -1..-10 */
+        if (mm > LAZ_GPS_MULTI_MINUS) {
+            diff = laz_ic_decompress(ic, d, laz_i32((uint32_t)mm * last), 5);
+        } else {
+            diff = laz_ic_decompress(ic, d, laz_i32((uint32_t)LAZ_GPS_MULTI_MINUS * last), 6);
+            if (++*extreme > 3) {
+                *last_diff = diff;
+                *extreme = 0;
+            }
+        }
+    }
+    return diff;
+}
 
 /* Layered decoding (laz_layered.c), called by laz_decode_chunk. */
 typedef struct laz_layered laz_layered;

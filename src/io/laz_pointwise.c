@@ -111,6 +111,7 @@ typedef struct pw_item {
 
 struct laz_decoder {
     int layered;
+    int v2_p10;            /* POINT10 [GPSTIME11] [RGB12], all version 2: pw_chunk_v2 */
     unsigned n_items;
     size_t record_length;
     pw_item items[LAZ_MAX_ITEMS];
@@ -225,7 +226,7 @@ static void p10_init(p10_state *s, const uint8_t *raw)
 }
 
 /* A byte through the model its last value selects (made on first use). */
-static uint8_t p10_byte(laz_dec *d, laz_model *models, uint8_t *ready, uint8_t last)
+LAZ_INLINE uint8_t p10_byte(laz_dec *d, laz_model *models, uint8_t *ready, uint8_t last)
 {
     laz_model *m = laz_lazy_model(d, &models[last], &ready[last], 256);
     return m ? (uint8_t)laz_decode_symbol(d, m) : last;
@@ -276,7 +277,7 @@ static void p10_read_v1(p10_state *s, laz_dec *d, uint8_t *out)
     p10_store(p, out);
 }
 
-static void p10_read_v2(p10_state *s, laz_dec *d, uint8_t *out)
+LAZ_INLINE void p10_read_v2(p10_state *s, laz_dec *d, uint8_t *out)
 {
     p10_point *p = &s->last;
     uint32_t changed = laz_decode_symbol(d, &s->changed);
@@ -424,41 +425,8 @@ static void gps_read_v1(gps_state *s, laz_dec *d, uint8_t *out)
     laz_wr64(out, s->last_gps[0]);
 }
 
-int32_t laz_gps_multi_diff(laz_ic *ic, laz_dec *d, int32_t *last_diff, int32_t *extreme,
-                              uint32_t multi)
-{
-    int32_t diff;
-    uint32_t last = (uint32_t)*last_diff;
-    if (multi == 0) {
-        diff = laz_ic_decompress(ic, d, 0, 7);
-        if (++*extreme > 3) {
-            *last_diff = diff;
-            *extreme = 0;
-        }
-    } else if (multi < GPS_MULTI) {
-        diff = laz_ic_decompress(ic, d, laz_i32(multi * last), multi < 10 ? 2 : 3);
-    } else if (multi == GPS_MULTI) {
-        diff = laz_ic_decompress(ic, d, laz_i32(GPS_MULTI * last), 4);
-        if (++*extreme > 3) {
-            *last_diff = diff;
-            *extreme = 0;
-        }
-    } else {
-        int32_t mm = GPS_MULTI - (int32_t)multi; /* -1..-10 */
-        if (mm > GPS_MULTI_MINUS) {
-            diff = laz_ic_decompress(ic, d, laz_i32((uint32_t)mm * last), 5);
-        } else {
-            diff = laz_ic_decompress(ic, d, laz_i32((uint32_t)GPS_MULTI_MINUS * last), 6);
-            if (++*extreme > 3) {
-                *last_diff = diff;
-                *extreme = 0;
-            }
-        }
-    }
-    return diff;
-}
 
-static void gps_read_v2(gps_state *s, laz_dec *d, uint8_t *out)
+LAZ_INLINE void gps_read_v2(gps_state *s, laz_dec *d, uint8_t *out)
 {
     /* A sequence switch re-reads; the encoder switches at most once per
      * point, so a few rounds bound a corrupt stream. */
@@ -575,55 +543,8 @@ static void rgb_read_v1(rgb_state *s, laz_dec *d, uint8_t *out)
     }
 }
 
-void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff_model[6],
-                          const uint16_t last[3], uint16_t c[3])
-{
-    uint32_t sym = laz_decode_symbol(d, byte_used);
-    uint32_t r, g, b;
-    if (sym & 1)
-        r = (laz_decode_symbol(d, &diff_model[0]) + (last[0] & 0xFF)) & 0xFF;
-    else
-        r = last[0] & 0xFF;
-    if (sym & 2)
-        r |= ((laz_decode_symbol(d, &diff_model[1]) + (last[0] >> 8)) & 0xFF) << 8;
-    else
-        r |= last[0] & 0xFF00;
-    if (sym & 64) {
-        int32_t diff = (int32_t)(r & 0xFF) - (int32_t)(last[0] & 0xFF);
-        if (sym & 4)
-            g = (laz_decode_symbol(d, &diff_model[2]) +
-                 laz_clamp8(diff + (int32_t)(last[1] & 0xFF))) & 0xFF;
-        else
-            g = last[1] & 0xFF;
-        if (sym & 16) {
-            uint32_t corr = laz_decode_symbol(d, &diff_model[4]);
-            diff = (diff + ((int32_t)(g & 0xFF) - (int32_t)(last[1] & 0xFF))) / 2;
-            b = (corr + laz_clamp8(diff + (int32_t)(last[2] & 0xFF))) & 0xFF;
-        } else {
-            b = last[2] & 0xFF;
-        }
-        diff = (int32_t)(r >> 8) - (int32_t)(last[0] >> 8);
-        if (sym & 8)
-            g |= ((laz_decode_symbol(d, &diff_model[3]) +
-                   laz_clamp8(diff + (int32_t)(last[1] >> 8))) & 0xFF) << 8;
-        else
-            g |= last[1] & 0xFF00;
-        if (sym & 32) {
-            uint32_t corr = laz_decode_symbol(d, &diff_model[5]);
-            diff = (diff + ((int32_t)(g >> 8) - (int32_t)(last[1] >> 8))) / 2;
-            b |= ((corr + laz_clamp8(diff + (int32_t)(last[2] >> 8))) & 0xFF) << 8;
-        } else {
-            b |= last[2] & 0xFF00;
-        }
-    } else {
-        g = b = r;
-    }
-    c[0] = (uint16_t)r;
-    c[1] = (uint16_t)g;
-    c[2] = (uint16_t)b;
-}
 
-static void rgb_read_v2(rgb_state *s, laz_dec *d, uint8_t *out)
+LAZ_INLINE void rgb_read_v2(rgb_state *s, laz_dec *d, uint8_t *out)
 {
     uint16_t c[3];
     laz_rgb_decode(d, &s->byte_used, s->diff, s->last, c);
@@ -786,7 +707,11 @@ laz_decoder *laz_decoder_create(const laz_item *items, unsigned n_items, int lay
         }
         return dec;
     }
+    /* item types rise: POINT10 6, GPSTIME11 7, RGB12 8 */
+    dec->v2_p10 = items[0].type == LAZ_POINT10;
     for (unsigned i = 0; i < n_items; i++) {
+        dec->v2_p10 &= items[i].version == 2 && items[i].type <= LAZ_RGB12 &&
+                       (i == 0 || items[i].type > items[i - 1].type);
         pw_item *it = &dec->items[i];
         it->type = items[i].type;
         it->size = items[i].size;
@@ -865,6 +790,35 @@ static void pw_read_point(laz_decoder *dec, laz_dec *d, uint8_t *out)
     }
 }
 
+/* Points 1..count-1 of a chunk of the common formats 0-3 (POINT10, then
+ * GPSTIME11 and RGB12 as present, all version 2): every item inlined, so
+ * the arithmetic decoder stays in registers from point to point. Returns
+ * the index of the point that raised a flag, or count. */
+static size_t pw_chunk_v2(laz_decoder *dec, laz_dec *dp, size_t count, uint8_t *out)
+{
+    laz_dec d = *dp;
+    p10_state *p10 = dec->items[0].state;
+    gps_state *gps = NULL;
+    rgb_state *rgb = NULL;
+    for (unsigned k = 1; k < dec->n_items; k++) {
+        if (dec->items[k].type == LAZ_GPSTIME11)
+            gps = dec->items[k].state;
+        else
+            rgb = dec->items[k].state;
+    }
+    size_t rl = dec->record_length, i = 1, at_rgb = gps ? 28 : 20;
+    for (; i < count && !*d.fail; i++) {
+        uint8_t *rec = out + i * rl;
+        p10_read_v2(p10, &d, rec);
+        if (gps)
+            gps_read_v2(gps, &d, rec + 20);
+        if (rgb)
+            rgb_read_v2(rgb, &d, rec + at_rgb);
+    }
+    *dp = d;
+    return i;
+}
+
 int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, size_t count,
                      uint8_t *out, size_t *consumed, laz_chunk_status *st)
 {
@@ -905,8 +859,11 @@ int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, siz
     laz_dec d;
     laz_dec_init(&d, p + rl, end, &st->fail);
     size_t i = 1;
-    for (; i < count && !st->fail; i++)
-        pw_read_point(dec, &d, out + i * rl);
+    if (dec->v2_p10)
+        i = pw_chunk_v2(dec, &d, count, out);
+    else
+        for (; i < count && !st->fail; i++)
+            pw_read_point(dec, &d, out + i * rl);
     *consumed = (size_t)(d.p - p);
     if (st->fail) {
         st->point = i - 1; /* the point whose decoding raised the flag */
