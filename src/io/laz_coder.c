@@ -61,24 +61,6 @@ void laz_model_init(laz_model *m)
     m->until_update = m->update_cycle = (m->symbols + 6) >> 1;
 }
 
-/* The decoder table: table[s] is the last symbol whose distribution starts
- * below s << table_shift (0 for s = 0), so the symbol of a value v lies in
- * [table[v >> shift], table[(v >> shift) + 1]]. Written without branches:
- * each symbol stores itself at the slot where it starts (the last one to
- * start in a slot stays), then a running maximum fills the slots no symbol
- * starts in. */
-static void laz_model_table(laz_model *m)
-{
-    uint16_t *t = m->table + 1;
-    uint32_t size = m->table_size;
-    memset(t, 0, ((size_t)size + 1) * sizeof *t);
-    for (uint32_t k = 0; k < m->symbols; k++)
-        t[m->dist[k] >> m->table_shift] = (uint16_t)k;
-    for (uint32_t s = 1; s <= size; s++)
-        t[s] = t[s] > t[s - 1] ? t[s] : t[s - 1];
-    m->table[0] = 0;
-}
-
 void laz_model_update(laz_model *m)
 {
     if ((m->total_count += m->update_cycle) > (1u << LAZ_DM_SHIFT)) {
@@ -87,12 +69,33 @@ void laz_model_update(laz_model *m)
             m->total_count += (m->count[n] = (m->count[n] + 1) >> 1);
     }
     uint32_t sum = 0, scale = 0x80000000u / m->total_count;
-    for (uint32_t k = 0; k < m->symbols; k++) {
-        m->dist[k] = (scale * sum) >> (31 - LAZ_DM_SHIFT);
-        sum += m->count[k];
+    uint32_t *restrict dist = m->dist;
+    const uint32_t *restrict count = m->count;
+    if (!m->table) {
+        for (uint32_t k = 0; k < m->symbols; k++) {
+            dist[k] = (scale * sum) >> (31 - LAZ_DM_SHIFT);
+            sum += count[k];
+        }
+    } else {
+        /* The decoder table: table[s] is the last symbol whose distribution
+         * starts below s << table_shift (0 for s = 0), so the symbol of a
+         * value v lies in [table[v >> shift], table[(v >> shift) + 1]].
+         * Built without branches: each symbol stores itself at the slot it
+         * starts in (the last to start in a slot stays), then a running
+         * maximum fills the slots no symbol starts in. */
+        uint16_t *restrict t = m->table + 1;
+        uint32_t size = m->table_size, shift = m->table_shift;
+        memset(t, 0, ((size_t)size + 1) * sizeof *t);
+        for (uint32_t k = 0; k < m->symbols; k++) {
+            uint32_t v = (scale * sum) >> (31 - LAZ_DM_SHIFT);
+            dist[k] = v;
+            t[v >> shift] = (uint16_t)k;
+            sum += count[k];
+        }
+        for (uint32_t s = 1; s <= size; s++)
+            t[s] = t[s] > t[s - 1] ? t[s] : t[s - 1];
+        m->table[0] = 0;
     }
-    if (m->table)
-        laz_model_table(m);
     m->update_cycle = (5 * m->update_cycle) >> 2;
     uint32_t max_cycle = (m->symbols + 6) << 3;
     if (m->update_cycle > max_cycle)

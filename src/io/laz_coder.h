@@ -100,7 +100,7 @@ void laz_dec_init(laz_dec *d, const uint8_t *p, const uint8_t *end, int *fail);
 
 /* ---- the decoder (inline: the item decoders call these per field) ---- */
 
-static inline uint32_t laz_byte(laz_dec *d)
+LAZ_INLINE uint32_t laz_byte(laz_dec *d)
 {
     if (d->p < d->end)
         return *d->p++;
@@ -110,7 +110,7 @@ static inline uint32_t laz_byte(laz_dec *d)
 
 /* Renormalisation a byte at a time: the stream's last bytes and corrupt
  * states (the encoder never leaves a zero range). */
-static inline void laz_renorm_slow(laz_dec *d)
+LAZ_INLINE void laz_renorm_slow(laz_dec *d)
 {
     if (d->length >= LAZ_MIN_LENGTH)
         return;
@@ -227,7 +227,7 @@ LAZ_INLINE uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
 }
 
 /* Raw bits (1..19) at a uniform probability. */
-static inline uint32_t laz_read_bits_short(laz_dec *d, uint32_t bits)
+LAZ_INLINE uint32_t laz_read_bits_short(laz_dec *d, uint32_t bits)
 {
     uint32_t sym = d->value / (d->length >>= bits);
     d->value -= d->length * sym;
@@ -240,7 +240,7 @@ static inline uint32_t laz_read_bits_short(laz_dec *d, uint32_t bits)
 }
 
 /* Raw bits, 1..32 (more than 19 as a 16-bit low part first). */
-static inline uint32_t laz_read_bits(laz_dec *d, uint32_t bits)
+LAZ_INLINE uint32_t laz_read_bits(laz_dec *d, uint32_t bits)
 {
     if (bits > 19) {
         uint32_t lo = laz_read_bits_short(d, 16);
@@ -249,13 +249,13 @@ static inline uint32_t laz_read_bits(laz_dec *d, uint32_t bits)
     return laz_read_bits_short(d, bits);
 }
 
-static inline uint32_t laz_read_int(laz_dec *d)
+LAZ_INLINE uint32_t laz_read_int(laz_dec *d)
 {
     uint32_t lo = laz_read_bits_short(d, 16);
     return (laz_read_bits_short(d, 16) << 16) | lo;
 }
 
-static inline uint64_t laz_read_int64(laz_dec *d)
+LAZ_INLINE uint64_t laz_read_int64(laz_dec *d)
 {
     uint64_t lo = laz_read_int(d);
     return ((uint64_t)laz_read_int(d) << 32) | lo;
@@ -263,7 +263,7 @@ static inline uint64_t laz_read_int64(laz_dec *d)
 
 /* A model made and reset on its first use in a chunk (*ready cleared when
  * the chunk begins). NULL when it cannot be allocated (LAZ_FAIL_NOMEM). */
-static inline laz_model *laz_lazy_model(laz_dec *d, laz_model *m, uint8_t *ready,
+LAZ_INLINE laz_model *laz_lazy_model(laz_dec *d, laz_model *m, uint8_t *ready,
                                         uint32_t symbols)
 {
     if (!*ready) {

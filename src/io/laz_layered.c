@@ -278,14 +278,14 @@ static int p14_ctx_start(p14_item *s, unsigned k, const p14_point *from)
 
 /* A symbol through a model made on first use in the chunk, or `fallback`
  * when it cannot be allocated (the flag stops the chunk). */
-static uint32_t lazy_symbol(laz_dec *d, laz_model *m, uint8_t *ready, uint32_t symbols,
+LAZ_INLINE uint32_t lazy_symbol(laz_dec *d, laz_model *m, uint8_t *ready, uint32_t symbols,
                             uint32_t fallback)
 {
     laz_model *lm = laz_lazy_model(d, m, ready, symbols);
     return lm ? laz_decode_symbol(d, lm) : fallback;
 }
 
-static void p14_read_gps(p14_ctx *c, laz_dec *d)
+LAZ_INLINE void p14_read_gps(p14_ctx *c, laz_dec *d)
 {
     /* The encoder switches sequence at most once per point. */
     for (int round = 0; round < 4; round++) {
@@ -337,9 +337,11 @@ static void p14_read_gps(p14_ctx *c, laz_dec *d)
 }
 
 /* One point; returns the context the other items use. */
-static unsigned p14_read(p14_item *s, uint8_t *out, int *fail)
+LAZ_INLINE unsigned p14_read(p14_item *s, uint8_t *out, int *fail)
 {
-    laz_dec *xy = &s->layer[L_XY];
+    /* every layer's decoder is copied in and out, so that its state stays
+     * in registers (model updates could otherwise alias it) */
+    laz_dec xyd = s->layer[L_XY], *xy = &xyd;
     p14_ctx *c = s->ctx[s->cur];
     p14_point *last = &c->last;
     unsigned lpr = (last->r == 1 ? 1u : 0u) + (last->r >= last->n ? 2u : 0u) +
@@ -352,6 +354,7 @@ static unsigned p14_read(p14_item *s, uint8_t *out, int *fail)
         if ((!s->ctx[channel] || !s->ctx[channel]->used) &&
             p14_ctx_start(s, channel, last) != 0) {
             *fail |= LAZ_FAIL_NOMEM;
+            s->layer[L_XY] = xyd;
             return 0;
         }
         s->cur = channel;
@@ -395,49 +398,67 @@ static unsigned p14_read(p14_item *s, uint8_t *out, int *fail)
                              (n == 1) + (k < 20 ? (k & ~1u) : 20));
     last->y += (uint32_t)diff;
     laz_median5_add(&c->ydiff[idx], diff);
+    s->layer[L_XY] = xyd;
 
     if (s->bytes[L_Z]) {
+        laz_dec d = s->layer[L_Z];
         k = (c->ic_dx.k + c->ic_dy.k) / 2;
-        last->z = (uint32_t)laz_ic_decompress(&c->ic_z, &s->layer[L_Z], c->last_z[l],
+        last->z = (uint32_t)laz_ic_decompress(&c->ic_z, &d, c->last_z[l],
                                               (n == 1) + (k < 18 ? (k & ~1u) : 18));
         c->last_z[l] = laz_i32(last->z);
+        s->layer[L_Z] = d;
     }
     if (s->bytes[L_CLASS]) {
+        laz_dec d = s->layer[L_CLASS];
         unsigned ccc = ((last->cls & 0x1Fu) << 1) + (cpr == 3 ? 1u : 0u);
-        last->cls = (uint8_t)lazy_symbol(&s->layer[L_CLASS], &c->cls[ccc], &c->cls_ready[ccc],
+        last->cls = (uint8_t)lazy_symbol(&d, &c->cls[ccc], &c->cls_ready[ccc],
                                          256, last->cls);
+        s->layer[L_CLASS] = d;
     }
     if (s->bytes[L_FLAGS]) {
+        laz_dec d = s->layer[L_FLAGS];
         unsigned lf = (unsigned)(last->edge << 5) | (unsigned)(last->scan_dir << 4) |
                       last->class_flags;
-        uint32_t f = lazy_symbol(&s->layer[L_FLAGS], &c->flags[lf], &c->flags_ready[lf], 64,
+        uint32_t f = lazy_symbol(&d, &c->flags[lf], &c->flags_ready[lf], 64,
                                  lf);
         last->edge = (f >> 5) & 1;
         last->scan_dir = (f >> 4) & 1;
         last->class_flags = f & 15;
+        s->layer[L_FLAGS] = d;
     }
     if (s->bytes[L_INTENSITY]) {
+        laz_dec d = s->layer[L_INTENSITY];
         unsigned ic = (cpr << 1) | (unsigned)gps_change;
-        uint16_t v = (uint16_t)laz_ic_decompress(&c->ic_intensity, &s->layer[L_INTENSITY],
+        uint16_t v = (uint16_t)laz_ic_decompress(&c->ic_intensity, &d,
                                                  c->last_intensity[ic], cpr);
         c->last_intensity[ic] = v;
         last->intensity = v;
+        s->layer[L_INTENSITY] = d;
     }
-    if (s->bytes[L_SCAN_ANGLE] && angle_change)
-        last->scan_angle = (uint16_t)laz_ic_decompress(
-            &c->ic_scan_angle, &s->layer[L_SCAN_ANGLE], (int16_t)last->scan_angle,
-            (uint32_t)gps_change);
+    if (s->bytes[L_SCAN_ANGLE] && angle_change) {
+        laz_dec d = s->layer[L_SCAN_ANGLE];
+        last->scan_angle = (uint16_t)laz_ic_decompress(&c->ic_scan_angle, &d,
+                                                       (int16_t)last->scan_angle,
+                                                       (uint32_t)gps_change);
+        s->layer[L_SCAN_ANGLE] = d;
+    }
     if (s->bytes[L_USER_DATA]) {
+        laz_dec d = s->layer[L_USER_DATA];
         unsigned u = last->ud / 4u;
-        last->ud = (uint8_t)lazy_symbol(&s->layer[L_USER_DATA], &c->ud[u], &c->ud_ready[u],
+        last->ud = (uint8_t)lazy_symbol(&d, &c->ud[u], &c->ud_ready[u],
                                         256, last->ud);
+        s->layer[L_USER_DATA] = d;
     }
-    if (s->bytes[L_SOURCE] && psid_change)
-        last->psid = (uint16_t)laz_ic_decompress(&c->ic_psid, &s->layer[L_SOURCE], last->psid,
-                                                 0);
+    if (s->bytes[L_SOURCE] && psid_change) {
+        laz_dec d = s->layer[L_SOURCE];
+        last->psid = (uint16_t)laz_ic_decompress(&c->ic_psid, &d, last->psid, 0);
+        s->layer[L_SOURCE] = d;
+    }
     if (s->bytes[L_GPS] && gps_change) {
-        p14_read_gps(c, &s->layer[L_GPS]);
+        laz_dec d = s->layer[L_GPS];
+        p14_read_gps(c, &d);
         last->gps = c->last_gps[c->seq];
+        s->layer[L_GPS] = d;
     }
     p14_store(last, out);
     last->gps_change = gps_change;
@@ -638,7 +659,9 @@ static void rgb14_read(ly_item *it, rgb14_ctx *c, uint16_t *last, uint8_t *out)
 {
     uint16_t v[4];
     if (it->bytes[0]) {
-        laz_rgb_decode(&it->dec[0], &c->byte_used, c->diff, last, v);
+        laz_dec d = it->dec[0]; /* in registers while it decodes */
+        laz_rgb_decode(&d, &c->byte_used, c->diff, last, v);
+        it->dec[0] = d;
         memcpy(last, v, 3 * sizeof *v);
     } else {
         memcpy(v, last, 3 * sizeof *v);
