@@ -25,29 +25,34 @@ extern "C" {
 TESSEL_API tessel_status tessel_mpi_cloud_share(MPI_Comm comm, int root, tessel_status status,
                                                 tessel_cloud *cloud);
 
-/* tessel_cloud_read on every process of comm, each reading its part of the
+/* tessel_cloud_read by all processes of comm, each reading its part of the
  * file: a binary PLY file's vertex records, a LAS file's point records or a
  * LAZ file's chunks are split evenly between the processes, each decodes
- * its own, and the parts are shared so that every process holds the whole
- * cloud, the same as tessel_cloud_read gives (points, order, offset,
- * floats, normals, colours). Other formats (and PLY files with an
- * organized grid or records of varying size) are read by process 0 and
- * shared. On failure every process returns the status, with the message of
- * the first process that failed in *diag (may be NULL). */
-TESSEL_API tessel_status tessel_mpi_cloud_read(MPI_Comm comm, const char *path,
+ * its own, and the parts are joined on process root (on every process when
+ * root is TESSEL_MPI_ALL), whose cloud is then the one tessel_cloud_read
+ * gives (points, order, offset, floats, normals, colours, points dropped);
+ * the others' *cloud is left empty. Other formats (and PLY files with an
+ * organized grid or records of varying size) are read by one process and
+ * shared. On failure every process returns the status, with the message
+ * of the first process that failed in *diag (may be NULL). */
+#define TESSEL_MPI_ALL (-1)
+TESSEL_API tessel_status tessel_mpi_cloud_read(MPI_Comm comm, int root, const char *path,
                                                const tessel_read_params *params,
                                                tessel_cloud *cloud, tessel_diag *diag);
 
 /* tessel_reconstruct_greedy with the tiles (tessel_greedy_params.tile_points)
- * meshed by all processes of comm, tile k by process k mod size, each with
- * params->threads threads, and sent to process 0, which joins them (seams,
+ * meshed by all processes of comm: process 0, which alone holds the cloud
+ * (the others' may be empty: they receive the points of their tiles), sends
+ * tile k to process k mod size, which meshes its tiles on params->threads
+ * threads and sends them back; process 0 then joins them (seams,
  * orientation check, flips) while the others wait without spinning: on
  * params->threads (0: OpenMP's default) times the processes of comm on its
  * machine, at most the cores it may run on (omp_get_num_procs). Only
  * process 0's sink receives triangles and only its summary is filled; the
  * others may pass a sink that discards. A cloud of at most tile_points
  * points is one tile: process 0 meshes it alone. A failure on any process
- * (out of memory, a cancellation) is returned on every process. */
+ * (out of memory, a cancellation) is returned on every process. params must
+ * be the same on every process. */
 TESSEL_API tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
                                                        const tessel_greedy_params *params,
                                                        const tessel_callbacks *callbacks,

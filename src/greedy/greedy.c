@@ -1362,13 +1362,6 @@ static tessel_status params_status(const tessel_cloud *cloud, const tessel_greed
     return TESSEL_OK;
 }
 
-bool tsl_gp_tiled(const tessel_cloud *cloud, const tessel_greedy_params *params)
-{
-    tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
-    return params_status(cloud, &p) == TESSEL_OK && (p.orient_check || p.flip) &&
-           !p.existing_count && p.tile_points && cloud->count > p.tile_points;
-}
-
 tessel_status tsl_gp_space_order(const tessel_cloud *cloud, int threads, tessel_cloud *sorted,
                                  uint32_t **perm)
 {
@@ -1471,7 +1464,8 @@ tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
     bool check = p.orient_check && !p.existing_count;
     p.flip = p.flip && !p.existing_count;
     tessel_status s;
-    if ((check || p.flip) && tsl_gp_tiled(cloud, &p))
+    bool tiled = !p.existing_count && p.tile_points && cloud->count > p.tile_points;
+    if ((check || p.flip) && tiled)
         s = held_in_space_order(cloud, &p, check, runner, callbacks, sink, &sum);
     else if (check || p.flip)
         s = tsl_gp_held(cloud, &p, check, runner, callbacks, sink, &sum);

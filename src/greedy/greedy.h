@@ -512,22 +512,17 @@ typedef struct tsl_gp_tile_runner {
 tessel_status tsl_gp_space_order(const tessel_cloud *cloud, int threads, tessel_cloud *sorted,
                                  uint32_t **perm);
 
-/* Whether tessel_reconstruct_greedy cuts cloud into tiles with params
- * (valid, held mode, no existing triangles, more than tile_points points). */
-bool tsl_gp_tiled(const tessel_cloud *cloud, const tessel_greedy_params *params);
-
-/* What a process that only meshes tiles for another does: the same tiles
- * as tsl_gp_tiled_pass cuts (of the cloud in space order, as
- * tessel_reconstruct_greedy meshes a tiled cloud), handed to runner (which
- * meshes its share and sends it on); nothing is kept. */
-tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                                const tsl_gp_tile_runner *runner,
-                                const tessel_callbacks *callbacks);
-
 /* Tile k of job on the calling thread: job->parts[k] (triangles in the
  * cloud's indices) and job->sums[k]. */
 tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
                                const tessel_callbacks *cb);
+/* A tile's mesh from its own points (sub, in the tile's order): the
+ * triangles into out (in sub's indices), each point's FATE_* into fate,
+ * the counts into sum. What tsl_gp_tile_mesh runs, for a process that
+ * holds the tile's points alone (src/mpi/). */
+tessel_status tsl_gp_tile_mesh_cloud(const tessel_cloud *sub, const tessel_greedy_params *params,
+                                     const tessel_callbacks *cb, gp_collect *out, uint8_t *fate,
+                                     tessel_recon_summary *sum);
 
 /* The first pass in tiles of at most params->tile_points points, meshed
  * by runner, then the seams closed by a local pass over the points near

@@ -411,6 +411,20 @@ static tessel_status close_seams(const tessel_cloud *cloud, const tsl_tiles *cut
     return st;
 }
 
+tessel_status tsl_gp_tile_mesh_cloud(const tessel_cloud *sub, const tessel_greedy_params *params,
+                                     const tessel_callbacks *cb, gp_collect *out, uint8_t *fate,
+                                     tessel_recon_summary *sum)
+{
+    tessel_triangle_sink sink = {tsl_gp_collect_emit, out};
+    tessel_status st = tsl_gp_pass(sub, params, "greedy", cb, &sink, fate, sum);
+    /* The tile's flips here, on one thread, leave the pass over the whole
+     * mesh only the seams and repairs to flip. */
+    if (st == TESSEL_OK && params->flip)
+        st = tsl_flip_diagonals(sub->xyz, sub->count, out->tris, out->count, NULL, 1,
+                                &sum->flips);
+    return st;
+}
+
 tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
                                const tessel_callbacks *cb)
 {
@@ -422,21 +436,12 @@ tessel_status tsl_gp_tile_mesh(const tsl_gp_tiles_job *job, size_t k,
     if (st)
         return st;
     uint8_t *fate = tsl_alloc_array(m + 1, 1);
-    if (!fate) {
-        tessel_cloud_free(&sub);
-        return TESSEL_ERR_NOMEM;
-    }
-    tessel_triangle_sink sink = {tsl_gp_collect_emit, out};
-    st = tsl_gp_pass(&sub, job->params, "greedy", cb, &sink, fate, &job->sums[k]);
+    st = fate ? tsl_gp_tile_mesh_cloud(&sub, job->params, cb, out, fate, &job->sums[k])
+              : TESSEL_ERR_NOMEM;
+    tessel_cloud_free(&sub);
     for (size_t i = 0; st == TESSEL_OK && i < m; i++)
         job->fate[ids[i]] = fate[i];
     free(fate);
-    /* The tile's flips here, on one thread, leave the pass over the whole
-     * mesh only the seams and repairs to flip. */
-    if (st == TESSEL_OK && job->params->flip)
-        st = tsl_flip_diagonals(sub.xyz, sub.count, out->tris, out->count, NULL, 1,
-                                &job->sums[k].flips);
-    tessel_cloud_free(&sub);
     for (size_t i = 0; st == TESSEL_OK && i < 3 * out->count; i++)
         out->tris[i] = ids[out->tris[i]];
     return st;
@@ -508,28 +513,6 @@ static void free_tiles(tsl_tiles *cut, gp_collect *parts, tessel_recon_summary *
     free(parts);
     free(sums);
     tsl_tiles_free(cut);
-}
-
-tessel_status tsl_gp_tiles_help(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                                const tsl_gp_tile_runner *runner,
-                                const tessel_callbacks *callbacks)
-{
-    tsl_tiles cut = {0};
-    gp_collect *parts = NULL;
-    tessel_recon_summary *sums = NULL;
-    tessel_cloud sorted;
-    uint32_t *perm;
-    tessel_status st = tsl_gp_space_order(cloud, params->threads, &sorted, &perm);
-    if (st)
-        return st;
-    uint8_t *fate = tsl_alloc_array(cloud->count + 1, 1);
-    st = fate ? mesh_tiles(&sorted, params, runner, callbacks, &cut, &parts, &sums, fate)
-              : TESSEL_ERR_NOMEM;
-    free_tiles(&cut, parts, sums);
-    free(fate);
-    tessel_cloud_free(&sorted);
-    free(perm);
-    return st;
 }
 
 tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_params *params,

@@ -179,10 +179,39 @@ done:
     return st;
 }
 
-/* The whole cloud on every process from each one's part b: offset chosen,
- * floats as tessel_cloud_read stores them, the parts shared in order. */
-static tessel_status join_parts(MPI_Comm comm, const char *path, const tessel_read_params *params,
-                                tsl_builder *b, tessel_cloud *cloud, tessel_diag *diag)
+/* Moves count values from process `from` to process `to` (point to point,
+ * in pieces of at most PIECE). */
+static void move_array(MPI_Comm comm, int from, int to, void *buf, size_t count,
+                       MPI_Datatype type, size_t size)
+{
+    int rank;
+    MPI_Comm_rank(comm, &rank);
+    for (size_t i = 0; i < count; i += PIECE) {
+        int n = (int)(count - i < PIECE ? count - i : PIECE);
+        if (rank == from)
+            MPI_Send((char *)buf + i * size, n, type, to, 0, comm);
+        else if (rank == to)
+            MPI_Recv((char *)buf + i * size, n, type, from, 0, comm, MPI_STATUS_IGNORE);
+    }
+}
+
+/* The part of process r (pt) to root, or to every process when root < 0. */
+static void share_part(MPI_Comm comm, int root, int r, void *buf, size_t count,
+                       MPI_Datatype type, size_t size)
+{
+    if (root < 0)
+        bcast_array(comm, r, buf, count, type, size);
+    else if (r != root)
+        move_array(comm, r, root, buf, count, type, size);
+}
+
+/* The cloud from each process's part b, on root (every process when
+ * root < 0): offset chosen, floats as tessel_cloud_read stores them, the
+ * parts in order. A process that does not get the cloud converts its part
+ * in place of the cloud's arrays and sends it. */
+static tessel_status join_parts(MPI_Comm comm, int root, const char *path,
+                                const tessel_read_params *params, tsl_builder *b,
+                                tessel_cloud *cloud, tessel_diag *diag)
 {
     int rank, size;
     MPI_Comm_rank(comm, &rank);
@@ -211,35 +240,39 @@ static tessel_status join_parts(MPI_Comm comm, const char *path, const tessel_re
     double offset[3];
     if ((st = part_offset(comm, &pt, rank, size, b->xyz, offset)) != TESSEL_OK)
         goto done;
-    st = tessel_cloud_alloc(cloud, (size_t)pt.total, attr[0], attr[1]);
+    bool whole = root < 0 || rank == root;
+    st = tessel_cloud_alloc(cloud, (size_t)(whole ? pt.total : mine), attr[0], attr[1]);
     if ((st = agree(comm, st)) != TESSEL_OK)
         goto done;
     memcpy(cloud->offset, offset, sizeof offset);
-    size_t at = (size_t)pt.start[rank];
+    size_t at = whole ? (size_t)pt.start[rank] : 0;
     for (size_t i = 0; i < 3 * b->count; i++)
-        cloud->xyz[3 * at + i] = tsl_local_coord(b->xyz[i], cloud->offset[i % 3]);
+        cloud->xyz[3 * at + i] = tsl_local_coord(b->xyz[i], offset[i % 3]);
     if (attr[0] && b->count)
         memcpy(cloud->normals + 3 * at, b->normals, 3 * b->count * sizeof *cloud->normals);
     if (attr[1] && b->count)
         memcpy(cloud->rgb + 3 * at, b->rgb, 3 * b->count);
     tsl_builder_free(b);
     for (int r = 0; r < size; r++) {
-        size_t from = (size_t)pt.start[r], n = (size_t)pt.count[r];
-        bcast_array(comm, r, cloud->xyz + 3 * from, 3 * n, MPI_FLOAT, sizeof *cloud->xyz);
+        size_t from = whole ? (size_t)pt.start[r] : 0, n = (size_t)pt.count[r];
+        share_part(comm, root, r, cloud->xyz + 3 * from, 3 * n, MPI_FLOAT, sizeof *cloud->xyz);
         if (attr[0])
-            bcast_array(comm, r, cloud->normals + 3 * from, 3 * n, MPI_FLOAT,
-                        sizeof *cloud->normals);
+            share_part(comm, root, r, cloud->normals + 3 * from, 3 * n, MPI_FLOAT,
+                       sizeof *cloud->normals);
         if (attr[1])
-            bcast_array(comm, r, cloud->rgb + 3 * from, 3 * n, MPI_BYTE, 1);
+            share_part(comm, root, r, cloud->rgb + 3 * from, 3 * n, MPI_BYTE, 1);
     }
-    cloud->dropped_nonfinite = (size_t)dropped_all;
+    if (whole)
+        cloud->dropped_nonfinite = (size_t)dropped_all;
+    else
+        tessel_cloud_free(cloud);
 done:
     free(pt.count);
     free(pt.start);
     return st;
 }
 
-tessel_status tessel_mpi_cloud_read(MPI_Comm comm, const char *path,
+tessel_status tessel_mpi_cloud_read(MPI_Comm comm, int root, const char *path,
                                     const tessel_read_params *params, tessel_cloud *cloud,
                                     tessel_diag *diag)
 {
@@ -259,14 +292,15 @@ tessel_status tessel_mpi_cloud_read(MPI_Comm comm, const char *path,
     MPI_Allreduce(MPI_IN_PLACE, &any_whole, 1, MPI_INT, MPI_LOR, comm);
     if (any_whole) {
         tsl_builder_free(&b);
-        st = rank == 0 ? tessel_cloud_read(cloud, path, params, diag) : TESSEL_OK;
+        int reader = root < 0 ? 0 : root;
+        st = rank == reader ? tessel_cloud_read(cloud, path, params, diag) : TESSEL_OK;
         if ((st = agree_diag(comm, st, diag)) != TESSEL_OK) {
             tessel_cloud_free(cloud);
             return st;
         }
-        return tessel_mpi_cloud_share(comm, 0, TESSEL_OK, cloud);
+        return root < 0 ? tessel_mpi_cloud_share(comm, 0, TESSEL_OK, cloud) : TESSEL_OK;
     }
-    st = join_parts(comm, path, params, &b, cloud, diag);
+    st = join_parts(comm, root, path, params, &b, cloud, diag);
     tsl_builder_free(&b);
     if ((st = agree_diag(comm, st, diag)) != TESSEL_OK)
         tessel_cloud_free(cloud);
@@ -277,11 +311,56 @@ typedef struct ranks {
     MPI_Comm comm;
     int rank, size;
     int tile_threads; /* each process's threads for its tiles */
-    bool joined;      /* the runner was called (it took part in the tiles' steps) */
+    bool joined;      /* process 0: the runner was called */
 } ranks;
 
-/* This process's tiles, on its threads (no progress from inside: the
- * callbacks are not called from worker threads). */
+static int owner(const ranks *r, size_t k)
+{
+    return (int)(k % (size_t)r->size);
+}
+
+/* What process 0 tells the others when it starts the tiles, or when it
+ * ends without them: its status (not OK: stop) and the tiles (0: none). */
+typedef struct tiles_head {
+    int32_t status, normals, has_viewpoint;
+    uint64_t count;
+    double offset[3], viewpoint[3]; /* the cloud's, which a tile's copy keeps */
+} tiles_head;
+
+static tiles_head bcast_head(const ranks *r, tiles_head h)
+{
+    MPI_Bcast(&h, (int)sizeof h, MPI_BYTE, 0, r->comm);
+    return h;
+}
+
+/* The tiles' point ranges (count + 1 starts), from process 0 to all. */
+static tessel_status bcast_starts(const ranks *r, size_t count, const size_t *from,
+                                  uint64_t **start)
+{
+    *start = tsl_alloc_array(count + 1, sizeof **start);
+    tessel_status st = agree(r->comm, *start ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    if (st != TESSEL_OK)
+        return st;
+    for (size_t k = 0; from && k <= count; k++)
+        (*start)[k] = from[k];
+    bcast_array(r->comm, 0, *start, count + 1, MPI_UINT64_T, sizeof **start);
+    return TESSEL_OK;
+}
+
+/* The counts of every tile's triangles, summed over the processes (each
+ * knows its own tiles'). */
+static void share_counts(const ranks *r, uint64_t *counts, size_t nt)
+{
+    for (size_t k = 0; k < nt; k += PIECE) {
+        int n = (int)(nt - k < PIECE ? nt - k : PIECE);
+        MPI_Allreduce(MPI_IN_PLACE, counts + k, n, MPI_UINT64_T, MPI_SUM, r->comm);
+    }
+}
+
+/* ---- process 0 ---- */
+
+/* Its own tiles, on its threads (no progress from inside: the callbacks
+ * are not called from worker threads). */
 static tessel_status mesh_mine(const ranks *r, const tsl_gp_tiles_job *job)
 {
     size_t nt = job->count;
@@ -292,8 +371,7 @@ static tessel_status mesh_mine(const ranks *r, const tsl_gp_tiles_job *job)
 #pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
     for (long long kk = 0; kk < count; kk++) {
         size_t k = (size_t)kk;
-        status[k] = k % (size_t)r->size == (size_t)r->rank ? tsl_gp_tile_mesh(job, k, NULL)
-                                                          : TESSEL_OK;
+        status[k] = owner(r, k) == 0 ? tsl_gp_tile_mesh(job, k, NULL) : TESSEL_OK;
     }
     tessel_status st = TESSEL_OK;
     for (size_t k = 0; k < nt && !st; k++)
@@ -302,46 +380,48 @@ static tessel_status mesh_mine(const ranks *r, const tsl_gp_tiles_job *job)
     return st;
 }
 
-static int owner(const ranks *r, size_t k)
+/* Every other process's tiles, point by point in the tile's order, to it. */
+static tessel_status send_tiles(const ranks *r, const tsl_gp_tiles_job *job)
 {
-    return (int)(k % (size_t)r->size);
-}
-
-/* Point-to-point in pieces of at most PIECE elements (the same pieces on
- * both sides). */
-static void send_array(const ranks *r, const void *buf, size_t count, MPI_Datatype type,
-                       size_t size)
-{
-    for (size_t i = 0; i < count; i += PIECE) {
-        size_t n = count - i < PIECE ? count - i : PIECE;
-        MPI_Send((const char *)buf + i * size, (int)n, type, 0, 0, r->comm);
+    const tsl_tiles *cut = job->cut;
+    size_t most = 0;
+    for (size_t k = 0; k < job->count; k++)
+        most = cut->start[k + 1] - cut->start[k] > most ? cut->start[k + 1] - cut->start[k] : most;
+    float *buf = tsl_alloc_array(3 * most + 1, sizeof *buf);
+    tessel_status st = agree(r->comm, buf ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    for (size_t k = 0; st == TESSEL_OK && k < job->count; k++) {
+        if (owner(r, k) == 0)
+            continue;
+        const uint32_t *ids = cut->ids + cut->start[k];
+        size_t m = cut->start[k + 1] - cut->start[k];
+        for (int block = 0; block < 1 + (job->cloud->normals != NULL); block++) {
+            const float *src = block ? job->cloud->normals : job->cloud->xyz;
+            for (size_t i = 0; i < m; i++)
+                memcpy(buf + 3 * i, src + 3 * (size_t)ids[i], 3 * sizeof *buf);
+            move_array(r->comm, 0, owner(r, k), buf, 3 * m, MPI_FLOAT, sizeof *buf);
+        }
     }
+    free(buf);
+    return st;
 }
 
-static void recv_array(const ranks *r, int from, void *buf, size_t count, MPI_Datatype type,
-                       size_t size)
-{
-    for (size_t i = 0; i < count; i += PIECE) {
-        size_t n = count - i < PIECE ? count - i : PIECE;
-        MPI_Recv((char *)buf + i * size, (int)n, type, from, 0, r->comm, MPI_STATUS_IGNORE);
-    }
-}
-
-/* Every tile's triangles and summary from its process to process 0. */
-static tessel_status gather_tiles(const ranks *r, const tsl_gp_tiles_job *job)
+/* The other processes' tiles back: triangles (mapped from the tile's
+ * order to the cloud's), summaries and fates. */
+static tessel_status receive_tiles(const ranks *r, const tsl_gp_tiles_job *job)
 {
     size_t nt = job->count;
+    const tsl_tiles *cut = job->cut;
     uint64_t *counts = tsl_calloc_array(nt, sizeof *counts);
     if (agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM) != TESSEL_OK) {
         free(counts);
         return TESSEL_ERR_NOMEM;
     }
-    for (size_t k = (size_t)r->rank; k < nt; k += (size_t)r->size)
-        counts[k] = job->parts[k].count;
-    MPI_Allreduce(MPI_IN_PLACE, counts, (int)nt, MPI_UINT64_T, MPI_SUM, r->comm);
+    share_counts(r, counts, nt);
+    size_t most = 0;
     tessel_status mine = TESSEL_OK;
-    for (size_t k = 0; r->rank == 0 && k < nt && mine == TESSEL_OK; k++) {
+    for (size_t k = 0; k < nt && mine == TESSEL_OK; k++) {
         gp_collect *c = &job->parts[k];
+        most = cut->start[k + 1] - cut->start[k] > most ? cut->start[k + 1] - cut->start[k] : most;
         if (owner(r, k) == 0 || !counts[k])
             continue;
         c->tris = tsl_alloc_array((size_t)counts[k], 3 * sizeof *c->tris);
@@ -349,59 +429,182 @@ static tessel_status gather_tiles(const ranks *r, const tsl_gp_tiles_job *job)
         mine = c->tris ? TESSEL_OK : TESSEL_ERR_NOMEM;
     }
     free(counts);
-    if ((mine = agree(r->comm, mine)) != TESSEL_OK)
-        return mine;
-    /* Each tile's fates, packed in the tile's order of points. */
-    size_t most = 0;
-    for (size_t k = 0; k < nt; k++) {
-        size_t m = job->cut->start[k + 1] - job->cut->start[k];
-        most = m > most ? m : most;
-    }
-    uint8_t *fate = tsl_alloc_array(most + 1, 1);
+    uint8_t *fate = mine == TESSEL_OK ? tsl_alloc_array(most + 1, 1) : NULL;
     if ((mine = agree(r->comm, fate ? TESSEL_OK : TESSEL_ERR_NOMEM)) != TESSEL_OK) {
         free(fate);
         return mine;
     }
     for (size_t k = 0; k < nt; k++) {
         int from = owner(r, k);
-        gp_collect *c = &job->parts[k];
-        const uint32_t *ids = job->cut->ids + job->cut->start[k];
-        size_t m = job->cut->start[k + 1] - job->cut->start[k];
         if (from == 0)
             continue;
-        if (r->rank == from) {
-            send_array(r, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
-            MPI_Send(&job->sums[k], (int)sizeof job->sums[k], MPI_BYTE, 0, 0, r->comm);
-            for (size_t i = 0; i < m; i++)
-                fate[i] = job->fate[ids[i]];
-            send_array(r, fate, m, MPI_BYTE, 1);
-        } else if (r->rank == 0) {
-            recv_array(r, from, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
-            MPI_Recv(&job->sums[k], (int)sizeof job->sums[k], MPI_BYTE, from, 0, r->comm,
-                     MPI_STATUS_IGNORE);
-            recv_array(r, from, fate, m, MPI_BYTE, 1);
-            for (size_t i = 0; i < m; i++)
-                job->fate[ids[i]] = fate[i];
-        }
+        gp_collect *c = &job->parts[k];
+        const uint32_t *ids = cut->ids + cut->start[k];
+        size_t m = cut->start[k + 1] - cut->start[k];
+        move_array(r->comm, from, 0, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
+        for (size_t i = 0; i < 3 * c->count; i++)
+            c->tris[i] = ids[c->tris[i]];
+        move_array(r->comm, from, 0, &job->sums[k], sizeof job->sums[k], MPI_BYTE, 1);
+        move_array(r->comm, from, 0, fate, m, MPI_BYTE, 1);
+        for (size_t i = 0; i < m; i++)
+            job->fate[ids[i]] = fate[i];
     }
     free(fate);
     return TESSEL_OK;
 }
 
-/* The runner of every process: its share of the tiles, then all of them on
- * process 0, which goes on alone (seams, orientation, flips, output). */
+/* Process 0's runner: the other processes' tiles sent to them, its own
+ * meshed, theirs received; it then goes on alone (seams, orientation,
+ * flips, output). */
 static tessel_status run_ranks(void *ctx, const tsl_gp_tiles_job *job)
 {
     ranks *r = ctx;
     r->joined = true;
     tessel_status st = tsl_progress(job->callbacks, "greedy", 0.0);
-    if (st == TESSEL_OK)
-        st = mesh_mine(r, job);
+    const tessel_cloud *c = job->cloud;
+    tiles_head h = {(int32_t)st, c->normals != NULL, c->has_viewpoint, job->count, {0}, {0}};
+    memcpy(h.offset, c->offset, sizeof h.offset);
+    memcpy(h.viewpoint, c->viewpoint, sizeof h.viewpoint);
+    bcast_head(r, h);
+    if (st != TESSEL_OK)
+        return st;
+    uint64_t *start;
+    if ((st = bcast_starts(r, job->count, job->cut->start, &start)) != TESSEL_OK)
+        return st;
+    free(start);
+    if ((st = send_tiles(r, job)) != TESSEL_OK)
+        return st;
+    st = mesh_mine(r, job);
     if ((st = agree(r->comm, st)) != TESSEL_OK)
         return st;
-    if ((st = gather_tiles(r, job)) != TESSEL_OK)
+    if ((st = receive_tiles(r, job)) != TESSEL_OK)
         return st;
     return tsl_progress(job->callbacks, "greedy", 0.5);
+}
+
+/* ---- the other processes ---- */
+
+/* A process's own tiles: their points as received, their meshes. */
+typedef struct own_tiles {
+    size_t count;        /* tiles of this process */
+    size_t *k;           /* their numbers */
+    tessel_cloud *cloud; /* their points, in the tile's order */
+    gp_collect *parts;
+    tessel_recon_summary *sums;
+    uint8_t **fate;
+} own_tiles;
+
+static void own_free(own_tiles *o)
+{
+    for (size_t j = 0; j < o->count; j++) {
+        if (o->cloud)
+            tessel_cloud_free(&o->cloud[j]);
+        if (o->parts)
+            free(o->parts[j].tris);
+        if (o->fate)
+            free(o->fate[j]);
+    }
+    free(o->k);
+    free(o->cloud);
+    free(o->parts);
+    free(o->sums);
+    free(o->fate);
+    memset(o, 0, sizeof *o);
+}
+
+/* Room for this process's tiles of h (starts: their point ranges). */
+static tessel_status own_alloc(const ranks *r, const tiles_head *h, const uint64_t *start,
+                               own_tiles *o)
+{
+    size_t nt = (size_t)h->count;
+    o->count = nt / (size_t)r->size + (nt % (size_t)r->size > (size_t)r->rank);
+    o->k = tsl_calloc_array(o->count + 1, sizeof *o->k);
+    o->cloud = tsl_calloc_array(o->count + 1, sizeof *o->cloud);
+    o->parts = tsl_calloc_array(o->count + 1, sizeof *o->parts);
+    o->sums = tsl_calloc_array(o->count + 1, sizeof *o->sums);
+    o->fate = tsl_calloc_array(o->count + 1, sizeof *o->fate);
+    if (!o->k || !o->cloud || !o->parts || !o->sums || !o->fate)
+        return TESSEL_ERR_NOMEM;
+    for (size_t j = 0; j < o->count; j++) {
+        size_t k = (size_t)r->rank + j * (size_t)r->size, m = (size_t)(start[k + 1] - start[k]);
+        o->k[j] = k;
+        tessel_cloud *c = &o->cloud[j];
+        if (tessel_cloud_alloc(c, m, h->normals, 0) != TESSEL_OK ||
+            !(o->fate[j] = tsl_alloc_array(m + 1, 1)))
+            return TESSEL_ERR_NOMEM;
+        memcpy(c->offset, h->offset, sizeof c->offset);
+        memcpy(c->viewpoint, h->viewpoint, sizeof c->viewpoint);
+        c->has_viewpoint = h->has_viewpoint;
+    }
+    return TESSEL_OK;
+}
+
+static tessel_status mesh_own(const ranks *r, const tessel_greedy_params *params, own_tiles *o)
+{
+    tessel_status *status = tsl_alloc_array(o->count + 1, sizeof *status);
+    if (!status)
+        return TESSEL_ERR_NOMEM;
+    tessel_greedy_params tp = *params;
+    tp.tile_points = 0;
+    long long count = (long long)o->count;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
+    for (long long jj = 0; jj < count; jj++) {
+        size_t j = (size_t)jj;
+        status[j] = tsl_gp_tile_mesh_cloud(&o->cloud[j], &tp, NULL, &o->parts[j], o->fate[j],
+                                           &o->sums[j]);
+        tessel_cloud_free(&o->cloud[j]);
+    }
+    tessel_status st = TESSEL_OK;
+    for (size_t j = 0; j < o->count && !st; j++)
+        st = status[j];
+    free(status);
+    return st;
+}
+
+/* A process other than 0: receives its tiles, meshes them, sends them back
+ * (the other side of run_ranks). */
+static tessel_status serve(const ranks *r, const tessel_greedy_params *params)
+{
+    tiles_head h = bcast_head(r, (tiles_head){0});
+    if (h.status != TESSEL_OK || h.count == 0)
+        return (tessel_status)h.status;
+    uint64_t *start = NULL;
+    own_tiles o = {0};
+    tessel_status st = bcast_starts(r, (size_t)h.count, NULL, &start);
+    if (st != TESSEL_OK)
+        return st;
+    st = agree(r->comm, own_alloc(r, &h, start, &o)); /* send_tiles' agreement */
+    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
+        size_t m = o.cloud[j].count;
+        move_array(r->comm, 0, r->rank, o.cloud[j].xyz, 3 * m, MPI_FLOAT, sizeof(float));
+        if (h.normals)
+            move_array(r->comm, 0, r->rank, o.cloud[j].normals, 3 * m, MPI_FLOAT,
+                       sizeof(float));
+    }
+    if (st == TESSEL_OK)
+        st = agree(r->comm, mesh_own(r, params, &o));
+    uint64_t *counts = NULL;
+    if (st == TESSEL_OK) {
+        counts = tsl_calloc_array((size_t)h.count, sizeof *counts);
+        st = agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    }
+    if (st == TESSEL_OK) {
+        for (size_t j = 0; j < o.count; j++)
+            counts[o.k[j]] = o.parts[j].count;
+        share_counts(r, counts, (size_t)h.count);
+        st = agree(r->comm, TESSEL_OK); /* receive_tiles' room */
+    }
+    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
+        size_t m = (size_t)(start[o.k[j] + 1] - start[o.k[j]]);
+        move_array(r->comm, r->rank, 0, o.parts[j].tris, 3 * o.parts[j].count, MPI_UINT32_T,
+                   sizeof(uint32_t));
+        move_array(r->comm, r->rank, 0, &o.sums[j], sizeof o.sums[j], MPI_BYTE, 1);
+        move_array(r->comm, r->rank, 0, o.fate[j], m, MPI_BYTE, 1);
+    }
+    free(counts);
+    free(start);
+    own_free(&o);
+    return st;
 }
 
 /* Waits for process 0's final status without holding a core: the others
@@ -460,17 +663,16 @@ tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *c
         if (r.rank == 0)
             p.threads = last_step_threads(p.threads, beside);
     }
-    bool tiled = tsl_gp_tiled(cloud, &p);
-    tessel_status st;
-    if (r.rank == 0)
-        st = tsl_reconstruct_greedy_with(cloud, &p, &runner, callbacks, sink, summary);
-    else if (tiled)
-        st = tsl_gp_tiles_help(cloud, &p, &runner, callbacks);
-    else
-        st = TESSEL_OK;
-    /* A process that failed before its tiles' steps still takes part in
-     * the first, with its failure, so that no process waits for it. */
-    if (tiled && !r.joined)
-        agree(comm, st == TESSEL_OK ? TESSEL_ERR_INVALID_ARG : st);
-    return final_status(&r, r.rank == 0 ? st : TESSEL_OK);
+    /* The others' failures are agreed with process 0, whose final status
+     * says how it ended. */
+    if (r.rank != 0) {
+        (void)serve(&r, &p);
+        return final_status(&r, TESSEL_OK);
+    }
+    tessel_status st = tsl_reconstruct_greedy_with(cloud, &p, &runner, callbacks, sink, summary);
+    /* Without tiles (one tile's worth of points, or a failure before them)
+     * the others still wait for the head: none. */
+    if (!r.joined)
+        bcast_head(&r, (tiles_head){.status = (int32_t)st});
+    return final_status(&r, st);
 }

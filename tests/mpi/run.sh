@@ -66,16 +66,18 @@ for np in 1 2 3 4; do
     "$MPIEXEC" --oversubscribe --allow-run-as-root -np "$np" "$build/test_mpi_read" \
         "$work/far.ply" "$cloud" "$here"/../data/laz/*.la[sz] "$here"/../data/bad/* \
         >"$work/out" 2>"$work/err"
-    check "-np $np: clouds read in parts are the one-process reads ($(grep -c '^ok' "$work/out") files)" $?
+    check "-np $np: clouds read in parts are the one-process reads ($(grep -c '^ok' "$work/out") reads)" $?
 done
-laz=$here/../data/laz/1.2-with-color.copc.laz
-"$build/tessel" reconstruct "$laz" "$work/ref.ply" --method greedy --tile-points 256 --quiet
-for np in 2 3; do
-    run_mpi "$np" reconstruct "$laz" "$work/m.ply" --tile-points 256 --quiet
-    st=$?
-    cmp -s "$work/ref.ply" "$work/m.ply"
-    check "-np $np, a COPC file read in parts: exit $st, the same bytes as tessel" $(( $? + st ))
-    rm -f "$work/m.ply"
+# Read in parts, the tiles' points (and normals) sent to their processes.
+for in in "$here/../data/laz/1.2-with-color.copc.laz" "$work/far.ply"; do
+    "$build/tessel" reconstruct "$in" "$work/ref.ply" --method greedy --tile-points 256 --quiet
+    for np in 2 3; do
+        run_mpi "$np" reconstruct "$in" "$work/m.ply" --tile-points 256 --quiet
+        st=$?
+        cmp -s "$work/ref.ply" "$work/m.ply"
+        check "-np $np, $(basename "$in"): exit $st, the same bytes as tessel" $(( $? + st ))
+        rm -f "$work/m.ply"
+    done
 done
 
 # One tile (the default tile size): every process meshes it whole.

@@ -1,7 +1,8 @@
 /* tessel_mpi_cloud_read against tessel_cloud_read: for every file named on
  * the command line, every process's cloud is exactly the one-process read
  * (points, order, offset, floats, normals, colours, grid, viewpoint, points
- * dropped), or both fail with the same status and message. Run by
+ * dropped) on every process or on the one it is joined on (the others'
+ * empty), or both fail with the same status and message. Run by
  * tests/mpi/run.sh under mpirun -np 1..4. */
 #include "tessel_mpi.h"
 
@@ -60,14 +61,14 @@ static const double *middle_box(const char *path, const tessel_cloud *c, double 
     return box;
 }
 
-/* One read of path both ways; returns whether any process saw a
- * difference. */
-static int check(const char *path, const tessel_read_params *params, int rank, int size,
-                 tessel_cloud *kept)
+/* One read of path both ways, joined on root (every process: root < 0);
+ * returns whether any process saw a difference. */
+static int check(const char *path, const tessel_read_params *params, int root, int rank,
+                 int size, tessel_cloud *kept)
 {
     tessel_cloud m, s;
     tessel_diag dm = {0}, ds = {0};
-    tessel_status sm = tessel_mpi_cloud_read(MPI_COMM_WORLD, path, params, &m, &dm);
+    tessel_status sm = tessel_mpi_cloud_read(MPI_COMM_WORLD, root, path, params, &m, &dm);
     tessel_status ss = tessel_cloud_read(&s, path, params, &ds);
     const char *why = NULL;
     if (sm != ss)
@@ -75,16 +76,18 @@ static int check(const char *path, const tessel_read_params *params, int rank, i
     else if (ss != TESSEL_OK && (strcmp(dm.message, ds.message) != 0 ||
                                  dm.offset != ds.offset || dm.line != ds.line))
         why = "message";
-    else if (ss == TESSEL_OK)
+    else if (ss == TESSEL_OK && (root < 0 || rank == root))
         why = compare(&m, &s);
+    else if (ss == TESSEL_OK && (m.count || m.xyz))
+        why = "an empty cloud";
     int bad = why != NULL, any = 0;
     MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_LOR, MPI_COMM_WORLD);
     if (bad)
-        fprintf(stderr, "FAIL -np %d, process %d: %s%s: %s differs (%s | %s)\n", size, rank,
-                path, params ? " in a box" : "", why, dm.message, ds.message);
+        fprintf(stderr, "FAIL -np %d, process %d, root %d: %s%s: %s differs (%s | %s)\n", size,
+                rank, root, path, params ? " in a box" : "", why, dm.message, ds.message);
     else if (rank == 0)
-        printf("ok   -np %d: %s%s: %zu points%s%s\n", size, path, params ? " in a box" : "",
-               s.count, ss != TESSEL_OK ? ", fails alike: " : "",
+        printf("ok   -np %d, root %d: %s%s: %zu points%s%s\n", size, root, path,
+               params ? " in a box" : "", s.count, ss != TESSEL_OK ? ", fails alike: " : "",
                ss != TESSEL_OK ? ds.message : "");
     tessel_cloud_free(&m);
     if (kept)
@@ -102,11 +105,12 @@ int main(int argc, char **argv)
     MPI_Comm_size(MPI_COMM_WORLD, &size);
     for (int i = 1; i < argc; i++) {
         tessel_cloud whole = {0};
-        failed += check(argv[i], NULL, rank, size, &whole);
+        failed += check(argv[i], NULL, TESSEL_MPI_ALL, rank, size, &whole);
+        failed += check(argv[i], NULL, size - 1, rank, size, NULL);
         double box[6];
         tessel_read_params p = tessel_read_params_default();
         if ((p.bbox = middle_box(argv[i], &whole, box)) != NULL)
-            failed += check(argv[i], &p, rank, size, NULL);
+            failed += check(argv[i], &p, TESSEL_MPI_ALL, rank, size, NULL);
         tessel_cloud_free(&whole);
     }
     MPI_Finalize();

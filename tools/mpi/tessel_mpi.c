@@ -106,11 +106,14 @@ static int reconstruct(int argc, char **argv, int rank, int procs)
     tessel_cloud cloud = {0};
     tessel_diag rdiag = {0};
     tessel_read_params rp = cli_read_params(&common);
-    tessel_status st = tessel_mpi_cloud_read(MPI_COMM_WORLD, in, &rp, &cloud, &rdiag);
-    /* Every process holds the same cloud and diagnostic: the same code. */
-    int rc = cli_accept_cloud(in, st, &rdiag, &cloud, 3, "a surface", &common);
-    if (rc != CLI_OK)
+    tessel_status st = tessel_mpi_cloud_read(MPI_COMM_WORLD, 0, in, &rp, &cloud, &rdiag);
+    /* Process 0 holds the cloud; every process exits with its code. */
+    int rc = rank == 0 ? cli_accept_cloud(in, st, &rdiag, &cloud, 3, "a surface", &common) : 0;
+    MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (rc != CLI_OK) {
+        tessel_cloud_free(&cloud);
         return rc;
+    }
     double t_read = cli_now() - t0;
     tessel_mesh_writer *writer = NULL;
     if ((st = open_output(rank, out, &cloud, o.ascii, &writer)) != TESSEL_OK) {
