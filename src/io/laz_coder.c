@@ -92,8 +92,11 @@ void laz_model_update(laz_model *m)
             t[v >> shift] = (uint16_t)k;
             sum += count[k];
         }
-        for (uint32_t s = 1; s <= size; s++)
-            t[s] = t[s] > t[s - 1] ? t[s] : t[s - 1];
+        uint16_t run = 0; /* in a register: no store-to-load chain */
+        for (uint32_t s = 0; s <= size; s++) {
+            run = t[s] > run ? t[s] : run;
+            t[s] = run;
+        }
         m->table[0] = 0;
     }
     m->update_cycle = (5 * m->update_cycle) >> 2;
