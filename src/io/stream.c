@@ -324,11 +324,11 @@ static int agreed_shift(const part_job *j, const tsl_las_header *h, const uint8_
     return j->any(j->ctx, mine) ? 8 : 0;
 }
 
-static tessel_status part_laz(const input *in, const char *name, const part_job *j,
-                              tsl_builder *b, tessel_diag *diag)
+static tessel_status part_laz(const uint8_t *data, size_t size, const char *name,
+                              const part_job *j, tsl_builder *b, tessel_diag *diag)
 {
     tsl_laz *z;
-    tessel_status st = tsl_laz_open_memory(&z, in->data, in->size, name, diag);
+    tessel_status st = tsl_laz_open_memory(&z, data, size, name, diag);
     if (st != TESSEL_OK)
         return st;
     const tsl_laz_info *info = tsl_laz_get_info(z);
@@ -378,22 +378,49 @@ static tessel_status part_laz(const input *in, const char *name, const part_job 
     return st;
 }
 
-static tessel_status part_las(const input *in, const char *name, const part_job *j,
-                              tsl_builder *b, tessel_diag *diag)
+static tessel_status part_las(const uint8_t *data, size_t size, const char *name,
+                              const part_job *j, tsl_builder *b, tessel_diag *diag)
 {
     tsl_las_header h;
     size_t n;
-    tessel_status st = tsl_las_check(in->data, in->size, name, &h, &n, diag);
+    tessel_status st = tsl_las_check(data, size, name, &h, &n, diag);
     if (st != TESSEL_OK)
         return st;
     if (h.compressed)
-        return part_laz(in, name, j, b, diag);
+        return part_laz(data, size, name, j, b, diag);
     size_t first = (size_t)((uint64_t)n * j->part / j->parts),
            last = (size_t)((uint64_t)n * (j->part + 1) / j->parts);
     size_t rl = h.record_length;
-    const uint8_t *rec = in->data + h.point_offset + first * rl;
+    const uint8_t *rec = data + h.point_offset + first * rl;
     int shift = agreed_shift(j, &h, rec, last - first, TESSEL_OK);
     return tsl_las_emit(rec, last - first, &h, shift, name, h.point_offset + first * rl, b, diag);
+}
+
+tessel_status tsl_cloud_parse_part(const uint8_t *data, size_t size, const char *name,
+                                   const tessel_read_params *params, size_t part, size_t parts,
+                                   tsl_any_fn any, void *ctx, tsl_builder *b, bool *whole,
+                                   tessel_diag *diag)
+{
+    if (diag)
+        memset(diag, 0, sizeof *diag);
+    memset(b, 0, sizeof *b);
+    *whole = false;
+    if (!any || parts == 0 || part >= parts)
+        return TESSEL_ERR_INVALID_ARG;
+    tsl_parse_fn parse;
+    tessel_status st = tsl_read_setup(data, size, name, params, b, &parse, diag);
+    part_job j = {part, parts, any, ctx};
+    if (st == TESSEL_OK && parse == tsl_parse_las)
+        st = part_las(data, size, name, &j, b, diag);
+    else if (st == TESSEL_OK && parse == tsl_parse_ply)
+        st = tsl_parse_ply_part(data, size, name, part, parts, b, whole, diag);
+    else if (st == TESSEL_OK)
+        *whole = true;
+    if (st == TESSEL_OK)
+        b->dropped = tsl_builder_keep_finite(b);
+    else if (diag && !diag->message[0])
+        tsl_diag_set(diag, name, 0, 0, 0, "%s", tessel_status_str(st));
+    return st;
 }
 
 tessel_status tsl_cloud_read_part(const char *path, const tessel_read_params *params,
@@ -404,25 +431,12 @@ tessel_status tsl_cloud_read_part(const char *path, const tessel_read_params *pa
         memset(diag, 0, sizeof *diag);
     memset(b, 0, sizeof *b);
     *whole = false;
-    if (!any || parts == 0 || part >= parts)
-        return TESSEL_ERR_INVALID_ARG;
     input in;
     tessel_status st = open_input(path, &in, diag);
     if (st != TESSEL_OK)
         return st;
-    tsl_parse_fn parse;
-    st = tsl_read_setup(in.data, in.size, path, params, b, &parse, diag);
-    part_job j = {part, parts, any, ctx};
-    if (st == TESSEL_OK && parse == tsl_parse_las)
-        st = part_las(&in, path, &j, b, diag);
-    else if (st == TESSEL_OK && parse == tsl_parse_ply)
-        st = tsl_parse_ply_part(in.data, in.size, path, part, parts, b, whole, diag);
-    else if (st == TESSEL_OK)
-        *whole = true;
-    if (st == TESSEL_OK)
-        b->dropped = tsl_builder_keep_finite(b);
-    else if (diag && !diag->message[0])
-        tsl_diag_set(diag, path, 0, 0, 0, "%s", tessel_status_str(st));
+    st = tsl_cloud_parse_part(in.data, in.size, path, params, part, parts, any, ctx, b, whole,
+                              diag);
     close_input(&in);
     return st;
 }

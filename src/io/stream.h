@@ -54,5 +54,10 @@ typedef int (*tsl_any_fn)(void *ctx, int mine);
 tessel_status tsl_cloud_read_part(const char *path, const tessel_read_params *params,
                                   size_t part, size_t parts, tsl_any_fn any, void *ctx,
                                   tsl_builder *b, bool *whole, tessel_diag *diag);
+/* The same from the file's bytes in memory (name for messages). */
+tessel_status tsl_cloud_parse_part(const uint8_t *data, size_t size, const char *name,
+                                   const tessel_read_params *params, size_t part, size_t parts,
+                                   tsl_any_fn any, void *ctx, tsl_builder *b, bool *whole,
+                                   tessel_diag *diag);
 
 #endif
