@@ -67,7 +67,8 @@ int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, siz
                      uint8_t *out, size_t *consumed, laz_chunk_status *st);
 
 /* RGB12 v2 and RGB14: the colour c from the last one (byte_used: 128
- * symbols, diff: six models of 256). */
+ * symbols, diff: six models of 256). Here and below, inline: the callers in
+ * both item files keep their decoder in registers through them. */
 LAZ_INLINE void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff_model[6],
                                const uint16_t last[3], uint16_t c[3])
 {

@@ -425,7 +425,6 @@ static void gps_read_v1(gps_state *s, laz_dec *d, uint8_t *out)
     laz_wr64(out, s->last_gps[0]);
 }
 
-
 LAZ_INLINE void gps_read_v2(gps_state *s, laz_dec *d, uint8_t *out)
 {
     /* A sequence switch re-reads; the encoder switches at most once per
@@ -542,7 +541,6 @@ static void rgb_read_v1(rgb_state *s, laz_dec *d, uint8_t *out)
         laz_wr16(out + 2 * i, c[i]);
     }
 }
-
 
 LAZ_INLINE void rgb_read_v2(rgb_state *s, laz_dec *d, uint8_t *out)
 {
