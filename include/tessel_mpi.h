@@ -3,9 +3,8 @@
  * tessel-mpi); see docs/mpi.md.
  *
  * Every process of the communicator calls each function with the same
- * arguments (collective calls). The result is byte for byte what
- * tessel_reconstruct_greedy gives in one process, for any number of
- * processes and threads. */
+ * arguments (collective calls). The result is byte for byte what the
+ * one-process function gives, for any number of processes and threads. */
 #ifndef TESSEL_MPI_H
 #define TESSEL_MPI_H
 
@@ -58,6 +57,22 @@ TESSEL_API tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tess
                                                        const tessel_callbacks *callbacks,
                                                        const tessel_triangle_sink *sink,
                                                        tessel_recon_summary *summary);
+
+/* tessel_reconstruct_smooth with the tiles of its advancing front
+ * (params->front.tile_points) run by all processes of comm: process 0, which
+ * alone holds the cloud (the others' may be empty), runs the pipeline and
+ * sends tile k's inputs to process k mod size, which runs the tile's front
+ * on params->threads threads and sends its triangles back; the other stages
+ * run on process 0 (with the threads of the processes beside it, as
+ * tessel_mpi_reconstruct_greedy's last step). Only process 0's mesh and
+ * stats are filled (the others' mesh is left empty). The same mesh as
+ * tessel_reconstruct_smooth, bit for bit, for any number of processes. A
+ * failure on any process is returned on every process. */
+TESSEL_API tessel_status tessel_mpi_reconstruct_smooth(MPI_Comm comm, const tessel_cloud *cloud,
+                                                       const tessel_smooth_recon_params *params,
+                                                       const tessel_callbacks *callbacks,
+                                                       tessel_mesh *mesh,
+                                                       tessel_smooth_recon_stats *stats);
 
 #ifdef __cplusplus
 }

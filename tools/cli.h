@@ -151,6 +151,23 @@ typedef struct cli_greedy_opts {
     int ascii;
     tessel_outofcore_params ooc; /* --memory SIZE, --scratch DIR */
 } cli_greedy_opts;
+/* How `reconstruct --method smooth` reads and reconstructs: tessel's own
+ * (cmd_reconstruct_smooth) or through hooks (tessel-mpi: every process runs
+ * the command; the reading and the reconstruction are collective, and a
+ * worker process, which only serves tiles, neither writes nor reports). */
+typedef struct cli_smooth_hooks {
+    /* cli_read_cloud's contract */
+    int (*read)(void *ctx, const char *path, tessel_cloud *cloud, const char *what,
+                const cli_common *common);
+    tessel_status (*reconstruct)(void *ctx, const tessel_cloud *cloud,
+                                 const tessel_smooth_recon_params *params,
+                                 const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                 tessel_smooth_recon_stats *stats);
+    void *ctx;
+    bool worker;
+} cli_smooth_hooks;
+int cli_reconstruct_smooth_with(int argc, char **argv, const cli_smooth_hooks *hooks);
+
 int cli_greedy_option(void *ctx, int argc, char **argv, int *i);
 
 /* Out of core (tools/cmd_reconstruct_file.c): whether the cloud at in is

@@ -222,6 +222,11 @@ static int smooth_recon_option(void *ctx, int argc, char **argv, int *i)
 
 int cmd_reconstruct_smooth(int argc, char **argv)
 {
+    return cli_reconstruct_smooth_with(argc, argv, NULL);
+}
+
+int cli_reconstruct_smooth_with(int argc, char **argv, const cli_smooth_hooks *hooks)
+{
     cli_common common = {0};
     smooth_recon_opts o;
     memset(&o, 0, sizeof o);
@@ -237,7 +242,8 @@ int cmd_reconstruct_smooth(int argc, char **argv)
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    int rc = cli_read_cloud(in, &cloud, 3, "the smooth method", &common);
+    int rc = hooks ? hooks->read(hooks->ctx, in, &cloud, "the smooth method", &common)
+                   : cli_read_cloud(in, &cloud, 3, "the smooth method", &common);
     if (rc != CLI_OK)
         return rc;
     double t_read = cli_now() - t0;
@@ -248,10 +254,15 @@ int cmd_reconstruct_smooth(int argc, char **argv)
     cli_progress_items(&prog, cloud.count);
     tessel_mesh mesh;
     tessel_smooth_recon_stats s;
-    tessel_status st = tessel_reconstruct_smooth(&cloud, &o.p, &cb, &mesh, &s);
+    tessel_status st = hooks ? hooks->reconstruct(hooks->ctx, &cloud, &o.p, &cb, &mesh, &s)
+                             : tessel_reconstruct_smooth(&cloud, &o.p, &cb, &mesh, &s);
     cli_progress_done(&prog);
     size_t n = cloud.count;
     tessel_cloud_free(&cloud);
+    if (hooks && hooks->worker) {
+        tessel_mesh_free(&mesh);
+        return st == TESSEL_OK ? CLI_OK : CLI_FAILURE;
+    }
     if (st != TESSEL_OK) {
         if (st == TESSEL_ERR_TOO_FEW_POINTS)
             cli_error("%s: too few distinct points left to triangulate (%zu representatives)",

@@ -1051,6 +1051,13 @@ static tessel_status check_params(const tessel_front_params *p)
     return TESSEL_OK;
 }
 
+/* tsl_advancing_front_from with its tiles run by runner. */
+static tessel_status front_from(const tessel_cloud *points, const float *lines,
+                                const tessel_front_params *params, const uint32_t *start,
+                                size_t start_count, const tsl_af_tile_runner *runner,
+                                const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                tessel_front_stats *stats);
+
 tessel_status tessel_advancing_front(const tessel_cloud *points,
                                      const tessel_front_params *params,
                                      const tessel_callbacks *callbacks, tessel_mesh *mesh,
@@ -1067,11 +1074,29 @@ tessel_status tsl_advancing_front_lines(const tessel_cloud *points, const float 
     return tsl_advancing_front_from(points, lines, params, NULL, 0, callbacks, mesh, stats);
 }
 
+tessel_status tsl_advancing_front_lines_with(const tessel_cloud *points, const float *lines,
+                                             const tessel_front_params *params,
+                                             const tsl_af_tile_runner *runner,
+                                             const tessel_callbacks *callbacks,
+                                             tessel_mesh *mesh, tessel_front_stats *stats)
+{
+    return front_from(points, lines, params, NULL, 0, runner, callbacks, mesh, stats);
+}
+
 tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *lines,
                                        const tessel_front_params *params,
                                        const uint32_t *start, size_t start_count,
                                        const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                        tessel_front_stats *stats)
+{
+    return front_from(points, lines, params, start, start_count, NULL, callbacks, mesh, stats);
+}
+
+static tessel_status front_from(const tessel_cloud *points, const float *lines,
+                                const tessel_front_params *params, const uint32_t *start,
+                                size_t start_count, const tsl_af_tile_runner *runner,
+                                const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                tessel_front_stats *stats)
 {
     if (!mesh)
         return TESSEL_ERR_INVALID_ARG;
@@ -1123,7 +1148,7 @@ tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *
     if ((st = tsl_af_alloc_mesh(&s, 3.0 * mean_nn)))
         goto fail;
     if (p.tile_points > 0 && s.n > p.tile_points) {
-        if ((st = tsl_af_run_tiles(&s, &p, mean_nn, start, start_count, callbacks)))
+        if ((st = tsl_af_run_tiles(&s, &p, mean_nn, start, start_count, runner, callbacks)))
             goto fail;
     } else if (start_count && (st = tsl_af_place_start(&s, start, start_count))) {
         goto fail;

@@ -31,6 +31,53 @@ tessel_status tsl_advancing_front_from(const tessel_cloud *points, const float *
                                        const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                        tessel_front_stats *stats);
 
+/* The tiles of a front to run (tsl_af_run_tiles): tile k's points are
+ * ids[range[k] .. range[k + 1]) of s (tile_of and local: each point's tile
+ * and place in it), its starting triangles start[3 sfrom[k] ..
+ * 3 sfrom[k + 1]) in local ids; each tile's front goes to tiles[k]. */
+typedef struct af af;
+typedef struct tsl_af_tiles_job {
+    const af *s;
+    const tessel_front_params *p;
+    size_t count;
+    const size_t *range;
+    const uint32_t *ids, *tile_of, *local, *start;
+    const size_t *sfrom;
+    const tessel_callbacks *cb;
+    af *tiles;
+} tsl_af_tiles_job;
+
+/* Who runs the tiles: NULL, this process's threads; the MPI runner
+ * (src/mpi/) spreads them over processes. A tile's front depends on the
+ * tile alone, so any runner gives the same mesh. */
+typedef struct tsl_af_tile_runner {
+    tessel_status (*run)(void *ctx, const tsl_af_tiles_job *job);
+    void *ctx;
+} tsl_af_tile_runner;
+
+/* tsl_advancing_front_lines with its tiles run by runner. */
+tessel_status tsl_advancing_front_lines_with(const tessel_cloud *points, const float *lines,
+                                             const tessel_front_params *params,
+                                             const tsl_af_tile_runner *runner,
+                                             const tessel_callbacks *callbacks,
+                                             tessel_mesh *mesh, tessel_front_stats *stats);
+
+/* Tile k of job into job->tiles[k]: its inputs (tsl_af_tile_inputs), then
+ * its front (tsl_af_tile_run). */
+tessel_status tsl_af_tile(const tsl_af_tiles_job *job, size_t k, const tessel_callbacks *cb);
+/* Tile k's inputs into t: its points (and normals and lines), normal
+ * lines, nearest distances, duplicate flags and neighbours (those in the
+ * tile, in local ids). */
+tessel_status tsl_af_tile_inputs(const tsl_af_tiles_job *job, size_t k, af *t);
+/* The room for a tile's inputs (m points, k neighbours each, p's derived
+ * parameters), for a process that receives them. */
+tessel_status tsl_af_tile_alloc(af *t, size_t m, uint32_t k, const tessel_front_params *p,
+                                bool normals, bool lines);
+/* A tile's front from its inputs: the mesh with cells of `cell`, the
+ * starting triangles, the fronts. */
+tessel_status tsl_af_tile_run(af *t, double cell, const uint32_t *start, size_t nstart,
+                              const tessel_callbacks *cb);
+
 /* ---- private to src/front/: the front's state and what its files share
  * (front.c the front itself, validity.c the checks of a new triangle,
  * holes.c the hole filling, tiles.c the tiles and their seams) ---- */
@@ -101,7 +148,7 @@ typedef struct af_tinfo {
     float lo[3], hi[3];
 } af_tinfo;
 
-typedef struct af {
+struct af {
     /* input */
     const float *xyz;
     const float *pnormals; /* may be NULL */
@@ -149,7 +196,7 @@ typedef struct af {
     size_t used;     /* points on some triangle */
     size_t deleted;  /* triangles removed by tsl_af_erode() (vertices NONE) */
     tessel_front_stats stats;
-} af;
+};
 
 /* Plain minimum / maximum of finite numbers (fmin/fmax handle NaN and are
  * function calls). */
@@ -256,11 +303,13 @@ void tsl_af_params(af *s, const tessel_front_params *p);
  * grid of the given cell size. */
 tessel_status tsl_af_alloc_mesh(af *s, double cell);
 
-/* Fronts in tiles of at most p->tile_points points, in parallel, each from
- * the triangles of start[0 .. nstart) with all three corners in it; their
- * triangles, less the seams, become s's starting mesh. */
+/* Fronts in tiles of at most p->tile_points points, run by runner (NULL:
+ * this process's threads), each from the triangles of start[0 .. nstart)
+ * with all three corners in it; their triangles, less the seams, become
+ * s's starting mesh. */
 tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_nn,
-                               const uint32_t *start, size_t nstart, const tessel_callbacks *cb);
+                               const uint32_t *start, size_t nstart,
+                               const tsl_af_tile_runner *runner, const tessel_callbacks *cb);
 
 /* Places the starting triangles in s (see tsl_advancing_front_from). */
 tessel_status tsl_af_place_start(af *s, const uint32_t *start, size_t count);

@@ -60,30 +60,38 @@ static int tile_progress(void *data, const char *stage, double fraction)
     return 0;
 }
 
-/* The front of one tile: points ids[0 .. m) of g, whose neighbour lists
- * keep the neighbours in the same tile (local[] maps a point to its place
- * in its tile), from the starting triangles start[0 .. nstart) (local
- * ids) when there are any. */
-static tessel_status tile_front(const af *g, const tessel_front_params *p, const uint32_t *ids,
-                                size_t m, uint32_t tile, const uint32_t *tile_of,
-                                const uint32_t *local, const uint32_t *start, size_t nstart,
-                                const tessel_callbacks *cb, af *t)
+tessel_status tsl_af_tile_alloc(af *t, size_t m, uint32_t k, const tessel_front_params *p,
+                                bool normals, bool lines)
 {
     memset(t, 0, sizeof *t);
     t->n = m;
-    t->k = g->k;
+    t->k = k;
     tsl_af_params(t, p);
-    size_t blocks = 1 + (g->pnormals != NULL) + (g->lines != NULL);
-    t->own = tsl_alloc_array(3 * m * blocks, sizeof *t->own);
-    t->knn = tsl_alloc_array(m * (size_t)g->k, sizeof *t->knn);
-    t->nnd = tsl_alloc_array(m, sizeof *t->nnd);
-    t->dup = tsl_alloc_array(m, sizeof *t->dup);
-    t->ln = tsl_alloc_array(3 * m, sizeof *t->ln);
-    t->vsign = tsl_calloc_array(m, sizeof *t->vsign);
+    size_t blocks = 1 + normals + lines;
+    t->own = tsl_alloc_array(3 * m * blocks + 1, sizeof *t->own);
+    t->knn = tsl_alloc_array(m * (size_t)k + 1, sizeof *t->knn);
+    t->nnd = tsl_alloc_array(m + 1, sizeof *t->nnd);
+    t->dup = tsl_alloc_array(m + 1, sizeof *t->dup);
+    t->ln = tsl_alloc_array(3 * m + 1, sizeof *t->ln);
+    t->vsign = tsl_calloc_array(m + 1, sizeof *t->vsign);
     if (!t->own || !t->knn || !t->nnd || !t->dup || !t->ln || !t->vsign)
         return TESSEL_ERR_NOMEM;
-    float *xyz = t->own, *nrm = g->pnormals ? t->own + 3 * m : NULL,
-          *lines = g->lines ? t->own + 3 * m * (blocks - 1) : NULL;
+    t->xyz = t->own;
+    t->pnormals = normals ? t->own + 3 * m : NULL;
+    t->lines = lines ? t->own + 3 * m * (blocks - 1) : NULL;
+    return TESSEL_OK;
+}
+
+tessel_status tsl_af_tile_inputs(const tsl_af_tiles_job *job, size_t k, af *t)
+{
+    const af *g = job->s;
+    const uint32_t *ids = job->ids + job->range[k];
+    size_t m = job->range[k + 1] - job->range[k];
+    tessel_status st = tsl_af_tile_alloc(t, m, g->k, job->p, g->pnormals != NULL,
+                                         g->lines != NULL);
+    if (st)
+        return st;
+    float *xyz = t->own, *nrm = (float *)t->pnormals, *lines = (float *)t->lines;
     for (size_t u = 0; u < m; u++) {
         size_t i = ids[u];
         memcpy(xyz + 3 * u, g->xyz + 3 * i, 3 * sizeof *xyz);
@@ -97,18 +105,73 @@ static tessel_status tile_front(const af *g, const tessel_front_params *p, const
         const uint32_t *row = g->knn + i * g->k;
         uint32_t *out = t->knn + u * g->k, got = 0;
         for (uint32_t j = 0; j < g->k; j++)
-            if (row[j] != NONE && tile_of[row[j]] == tile)
-                out[got++] = local[row[j]];
+            if (row[j] != NONE && job->tile_of[row[j]] == k)
+                out[got++] = job->local[row[j]];
         for (; got < g->k; got++)
             out[got] = NONE;
     }
-    t->xyz = xyz;
-    t->pnormals = nrm;
-    t->lines = lines;
-    tessel_status st = tsl_af_alloc_mesh(t, g->cell);
+    return TESSEL_OK;
+}
+
+tessel_status tsl_af_tile_run(af *t, double cell, const uint32_t *start, size_t nstart,
+                              const tessel_callbacks *cb)
+{
+    tessel_status st = tsl_af_alloc_mesh(t, cell);
     if (!st && nstart)
         st = tsl_af_place_start(t, start, nstart);
     return st ? st : tsl_af_run_fronts(t, cb);
+}
+
+tessel_status tsl_af_tile(const tsl_af_tiles_job *job, size_t k, const tessel_callbacks *cb)
+{
+    af *t = &job->tiles[k];
+    tessel_status st = tsl_af_tile_inputs(job, k, t);
+    return st ? st
+              : tsl_af_tile_run(t, job->s->cell, job->start + 3 * job->sfrom[k],
+                                job->sfrom[k + 1] - job->sfrom[k], cb);
+}
+
+/* The default runner: the tiles on this process's threads, the calling
+ * thread reporting the tiles finished plus its current tile's part (the
+ * callback is never called from two threads); a cancellation stops every
+ * tile. */
+static tessel_status run_threads(void *unused, const tsl_af_tiles_job *job)
+{
+    (void)unused;
+    size_t nt = job->count;
+    tile_ctx *ctx = tsl_alloc_array(nt + 1, sizeof *ctx);
+    tessel_callbacks *tcb = tsl_alloc_array(nt + 1, sizeof *tcb);
+    tessel_status *status = tsl_alloc_array(nt + 1, sizeof *status);
+    tessel_status st = TESSEL_ERR_NOMEM;
+    if (!ctx || !tcb || !status)
+        goto done;
+    atomic_int cancel, finished;
+    atomic_init(&cancel, 0);
+    atomic_init(&finished, 0);
+    for (size_t k = 0; k < nt; k++) {
+        ctx[k].user = job->cb;
+        ctx[k].tiles = nt;
+        ctx[k].finished = &finished;
+        ctx[k].cancel = &cancel;
+        tcb[k].progress = tile_progress;
+        tcb[k].log = NULL;
+        tcb[k].user_data = &ctx[k];
+    }
+    long long count = (long long)nt;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(job->p->threads))
+    for (long long kk = 0; kk < count; kk++) {
+        size_t k = (size_t)kk;
+        status[k] = tsl_af_tile(job, k, &tcb[k]);
+        atomic_fetch_add(&finished, 1);
+    }
+    st = TESSEL_OK;
+    for (size_t k = 0; k < nt && !st; k++)
+        st = status[k];
+done:
+    free(ctx);
+    free(tcb);
+    free(status);
+    return st;
 }
 
 /* Makes the triangles of s (a starting mesh: the tiles' or a caller's) a
@@ -229,7 +292,8 @@ static inline uint32_t tile_holding(const uint32_t *tile_of, const uint32_t v[3]
  * the triangles of start[0 .. nstart) with all three corners in it; their
  * triangles, less the seams, become s's starting mesh. */
 tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_nn,
-                               const uint32_t *start, size_t nstart, const tessel_callbacks *cb)
+                               const uint32_t *start, size_t nstart,
+                               const tsl_af_tile_runner *runner, const tessel_callbacks *cb)
 {
     tsl_tiles cut;
     tessel_status st = tsl_tiles_cut(s->xyz, s->n, p->tile_points, &cut);
@@ -241,13 +305,10 @@ tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_
     const float *dcut = cut.dcut;
     uint32_t *local = tsl_alloc_array(s->n, sizeof *local);
     af *tiles = tsl_calloc_array(cap, sizeof *tiles);
-    tessel_status *status = tsl_alloc_array(cap, sizeof *status);
-    tile_ctx *ctx = tsl_alloc_array(cap, sizeof *ctx);
-    tessel_callbacks *tcb = tsl_alloc_array(cap, sizeof *tcb);
     uint32_t *tstart = tsl_alloc_array(3 * nstart + 1, sizeof *tstart);
     size_t *sfrom = tsl_calloc_array(cap + 1, sizeof *sfrom);
     st = TESSEL_ERR_NOMEM;
-    if (!local || !tiles || !status || !ctx || !tcb || !tstart || !sfrom)
+    if (!local || !tiles || !tstart || !sfrom)
         goto done;
     for (size_t i = 0; i < s->n; i++)
         local[ids[i]] = (uint32_t)(i - range[tile_of[ids[i]]]);
@@ -272,30 +333,8 @@ tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_
     for (size_t k = nt; k-- > 0;) /* sfrom[k] was advanced to tile k's end */
         sfrom[k + 1] = sfrom[k];
     sfrom[0] = 0;
-    atomic_int cancel, finished;
-    atomic_init(&cancel, 0);
-    atomic_init(&finished, 0);
-    for (size_t k = 0; k < nt; k++) {
-        ctx[k].user = cb;
-        ctx[k].tiles = nt;
-        ctx[k].finished = &finished;
-        ctx[k].cancel = &cancel;
-        tcb[k].progress = tile_progress;
-        tcb[k].log = NULL;
-        tcb[k].user_data = &ctx[k];
-    }
-    long long count = (long long)nt;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(p->threads))
-    for (long long kk = 0; kk < count; kk++) {
-        size_t k = (size_t)kk;
-        status[k] = tile_front(s, p, ids + range[k], range[k + 1] - range[k],
-                               (uint32_t)k, tile_of, local, tstart + 3 * sfrom[k],
-                               sfrom[k + 1] - sfrom[k], &tcb[k], &tiles[k]);
-        atomic_fetch_add(&finished, 1);
-    }
-    st = TESSEL_OK;
-    for (size_t k = 0; k < nt && !st; k++)
-        st = status[k];
+    tsl_af_tiles_job job = {s, p, nt, range, ids, tile_of, local, tstart, sfrom, cb, tiles};
+    st = runner ? runner->run(runner->ctx, &job) : run_threads(NULL, &job);
     if (st)
         goto done;
     for (size_t k = 0; k < nt; k++) {
@@ -313,9 +352,6 @@ done:
     tsl_tiles_free(&cut);
     free(local);
     free(tiles);
-    free(status);
-    free(ctx);
-    free(tcb);
     free(tstart);
     free(sfrom);
     return st;

@@ -842,6 +842,15 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
                                         const tessel_callbacks *callbacks, tessel_mesh *mesh,
                                         tessel_smooth_recon_stats *stats)
 {
+    return tsl_reconstruct_smooth_with(cloud, params, NULL, callbacks, mesh, stats);
+}
+
+tessel_status tsl_reconstruct_smooth_with(const tessel_cloud *cloud,
+                                          const tessel_smooth_recon_params *params,
+                                          const tsl_af_tile_runner *runner,
+                                          const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                          tessel_smooth_recon_stats *stats)
+{
     if (!mesh)
         return TESSEL_ERR_INVALID_ARG;
     memset(mesh, 0, sizeof *mesh);
@@ -938,7 +947,8 @@ tessel_status tessel_reconstruct_smooth(const tessel_cloud *cloud,
     }
 
     t = tsl_seconds();
-    st = tsl_advancing_front_lines(&reps, lines, &p.front, callbacks, mesh, &s.front);
+    st = tsl_advancing_front_lines_with(&reps, lines, &p.front, runner, callbacks, mesh,
+                                        &s.front);
     /* Holes left: the front again around them with extra representatives,
      * the rest of the mesh kept (but near tile cuts; every result is
      * valid). In a scene of many pieces (a room scan) most borders are the

@@ -80,6 +80,26 @@ for in in "$here/../data/laz/1.2-with-color.copc.laz" "$work/far.ply"; do
     done
 done
 
+# The smooth method: the front's tiles (256 points: about 40 of the
+# bundled bunny's representatives) meshed by the processes.
+"$build/tessel" reconstruct "$cloud" "$work/ref.ply" --method smooth --tile-points 256 --quiet
+for np in 1 2 3; do
+    run_mpi "$np" reconstruct "$cloud" "$work/m.ply" --method smooth --tile-points 256 --quiet
+    st=$?
+    cmp -s "$work/ref.ply" "$work/m.ply"
+    check "-np $np, the smooth method's front in tiles: exit $st, the same bytes as tessel" \
+        $(( $? + st ))
+    rm -f "$work/m.ply"
+done
+run_mpi 2 reconstruct "$work/missing.ply" "$work/f.ply" --method smooth
+st=$?
+[ "$st" -eq 2 ] && grep -q "missing.ply" "$work/err" && [ ! -e "$work/f.ply" ]
+check "the smooth method, a missing input: exit $st, named, no output" $?
+run_mpi 2 reconstruct "$cloud" "$work/no/such/dir/f.ply" --method smooth --tile-points 256
+st=$?
+[ "$st" -eq 3 ] && grep -q "f.ply" "$work/err"
+check "the smooth method, an output that cannot be written: exit $st, named" $?
+
 # One tile (the default tile size): every process meshes it whole.
 "$build/tessel" reconstruct "$cloud" "$work/one.ply" --method greedy --quiet
 run_mpi 3 reconstruct "$cloud" "$work/m.ply" --quiet

@@ -23,7 +23,11 @@ static const char help[] =
     "meshes it alone.\n\n"
     "Options (see tessel reconstruct --method greedy --help):\n"
     "  --mu M, --max-angle DEG, --min-angle DEG, --plane pca|axis,\n"
-    "  --max-spacing K, --no-flip, --tile-points N (default 262144), --ascii\n\n";
+    "  --max-spacing K, --no-flip, --tile-points N (default 262144), --ascii\n\n"
+    "With --method smooth: the noisy-cloud pipeline (tessel reconstruct\n"
+    "--method smooth --help for its options) with the tiles of its advancing\n"
+    "front (--tile-points, default 65536) meshed by the N processes, the rest\n"
+    "on process 0; the same bytes as tessel for any N.\n\n";
 
 typedef struct run_ctx {
     const tessel_greedy_params *params;
@@ -82,8 +86,55 @@ static void print_summary(const tessel_recon_summary *s, size_t n, int procs, co
     }
 }
 
+/* The cloud read in parts and joined on process 0 (cli_read_cloud's
+ * contract there); every process returns process 0's code. */
+static int read_parts(void *unused, const char *path, tessel_cloud *cloud, const char *what,
+                      const cli_common *common)
+{
+    (void)unused;
+    int rank;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    tessel_diag diag = {0};
+    tessel_read_params rp = cli_read_params(common);
+    tessel_status st = tessel_mpi_cloud_read(MPI_COMM_WORLD, 0, path, &rp, cloud, &diag);
+    int rc = rank == 0 ? cli_accept_cloud(path, st, &diag, cloud, 3, what, common) : CLI_OK;
+    MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (rc != CLI_OK)
+        tessel_cloud_free(cloud);
+    return rc;
+}
+
+static tessel_status smooth_ranks(void *unused, const tessel_cloud *cloud,
+                                  const tessel_smooth_recon_params *params,
+                                  const tessel_callbacks *callbacks, tessel_mesh *mesh,
+                                  tessel_smooth_recon_stats *stats)
+{
+    (void)unused;
+    return tessel_mpi_reconstruct_smooth(MPI_COMM_WORLD, cloud, params, callbacks, mesh, stats);
+}
+
+/* tessel reconstruct --method smooth, run by every process: process 0 as
+ * tessel runs it, the others as workers that serve the front's tiles. */
+static int reconstruct_smooth(int argc, char **argv, int rank)
+{
+    if (rank != 0 && !freopen("/dev/null", "w", stderr))
+        return CLI_FAILURE;
+    cli_smooth_hooks hooks = {read_parts, smooth_ranks, NULL, rank != 0};
+    return cli_reconstruct_smooth_with(argc, argv, &hooks);
+}
+
+static bool wants_smooth(int argc, char **argv)
+{
+    for (int i = 1; i + 1 < argc; i++)
+        if (strcmp(argv[i], "--method") == 0 && strcmp(argv[i + 1], "smooth") == 0)
+            return true;
+    return false;
+}
+
 static int reconstruct(int argc, char **argv, int rank, int procs)
 {
+    if (wants_smooth(argc, argv))
+        return reconstruct_smooth(argc, argv, rank);
     cli_common common = {0};
     cli_greedy_opts o;
     memset(&o, 0, sizeof o);
@@ -104,16 +155,10 @@ static int reconstruct(int argc, char **argv, int rank, int procs)
     cli_apply_threads(&common);
     double t0 = cli_now();
     tessel_cloud cloud = {0};
-    tessel_diag rdiag = {0};
-    tessel_read_params rp = cli_read_params(&common);
-    tessel_status st = tessel_mpi_cloud_read(MPI_COMM_WORLD, 0, in, &rp, &cloud, &rdiag);
-    /* Process 0 holds the cloud; every process exits with its code. */
-    int rc = rank == 0 ? cli_accept_cloud(in, st, &rdiag, &cloud, 3, "a surface", &common) : 0;
-    MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    if (rc != CLI_OK) {
-        tessel_cloud_free(&cloud);
+    int rc = read_parts(NULL, in, &cloud, "a surface", &common);
+    if (rc != CLI_OK)
         return rc;
-    }
+    tessel_status st;
     double t_read = cli_now() - t0;
     tessel_mesh_writer *writer = NULL;
     if ((st = open_output(rank, out, &cloud, o.ascii, &writer)) != TESSEL_OK) {
@@ -168,6 +213,9 @@ int main(int argc, char **argv)
         /* mpirun passes a Ctrl-C to every process: each cancels. */
         cli_install_signals();
         code = reconstruct(argc - 1, argv + 1, rank, procs);
+        /* Every process exits with process 0's code (a failure to write
+         * is process 0's alone). */
+        MPI_Bcast(&code, 1, MPI_INT, 0, MPI_COMM_WORLD);
     } else {
         bool asked = argc >= 2 && (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0);
         if (rank == 0)

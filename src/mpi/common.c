@@ -1,0 +1,119 @@
+/* The collective steps and the tiles' protocol of src/mpi/ (mpi.h). */
+#include "mpi/mpi.h"
+
+#include <string.h>
+#include <time.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+tessel_status tsl_mpi_agree(MPI_Comm comm, tessel_status mine)
+{
+    int in = (int)mine, out = 0;
+    MPI_Allreduce(&in, &out, 1, MPI_INT, MPI_MAX, comm);
+    return (tessel_status)out;
+}
+
+void tsl_mpi_bcast(MPI_Comm comm, int root, void *buf, size_t count, MPI_Datatype type,
+                   size_t size)
+{
+    for (size_t i = 0; i < count; i += PIECE) {
+        size_t n = count - i < PIECE ? count - i : PIECE;
+        MPI_Bcast((char *)buf + i * size, (int)n, type, root, comm);
+    }
+}
+
+void tsl_mpi_move(MPI_Comm comm, int from, int to, void *buf, size_t count, MPI_Datatype type,
+                  size_t size)
+{
+    int rank;
+    MPI_Comm_rank(comm, &rank);
+    for (size_t i = 0; i < count; i += PIECE) {
+        int n = (int)(count - i < PIECE ? count - i : PIECE);
+        if (rank == from)
+            MPI_Send((char *)buf + i * size, n, type, to, 0, comm);
+        else if (rank == to)
+            MPI_Recv((char *)buf + i * size, n, type, from, 0, comm, MPI_STATUS_IGNORE);
+    }
+}
+
+ranks tsl_mpi_ranks(MPI_Comm comm, int threads)
+{
+    ranks r = {comm, 0, 1, threads, threads};
+    MPI_Comm_rank(comm, &r.rank);
+    MPI_Comm_size(comm, &r.size);
+    MPI_Comm node;
+    int beside = 1;
+    if (MPI_Comm_split_type(comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
+        MPI_SUCCESS) {
+        MPI_Comm_size(node, &beside);
+        MPI_Comm_free(&node);
+    }
+    int one = tsl_threads(threads);
+#ifdef _OPENMP
+    int cores = omp_get_num_procs();
+#else
+    int cores = 1;
+#endif
+    long want = (long)one * beside;
+    if (want > cores)
+        want = cores > one ? cores : one;
+    r.last_threads = (int)want;
+    return r;
+}
+
+tiles_head tsl_mpi_head(const ranks *r, tiles_head h)
+{
+    MPI_Bcast(&h, (int)sizeof h, MPI_BYTE, 0, r->comm);
+    return h;
+}
+
+tessel_status tsl_mpi_bcast_sizes(const ranks *r, size_t count, const size_t *from,
+                                  uint64_t **out)
+{
+    *out = tsl_alloc_array(count + 1, sizeof **out);
+    tessel_status st = tsl_mpi_agree(r->comm, *out ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    if (st != TESSEL_OK)
+        return st;
+    for (size_t k = 0; from && k <= count; k++)
+        (*out)[k] = from[k];
+    tsl_mpi_bcast(r->comm, 0, *out, count + 1, MPI_UINT64_T, sizeof **out);
+    return TESSEL_OK;
+}
+
+void tsl_mpi_sum_counts(const ranks *r, uint64_t *counts, size_t nt)
+{
+    for (size_t k = 0; k < nt; k += PIECE) {
+        int n = (int)(nt - k < PIECE ? nt - k : PIECE);
+        MPI_Allreduce(MPI_IN_PLACE, counts + k, n, MPI_UINT64_T, MPI_SUM, r->comm);
+    }
+}
+
+/* A failure while serving is agreed with process 0, which goes on to its
+ * end and then says it is done: the loop ends there. */
+tessel_status tsl_mpi_serve(const ranks *r)
+{
+    for (;;) {
+        tiles_head h = tsl_mpi_head(r, (tiles_head){0});
+        if (h.kind == TILES_DONE)
+            return (tessel_status)h.status;
+        if (h.status != TESSEL_OK)
+            continue;
+        (void)(h.kind == TILES_GREEDY ? tsl_mpi_serve_greedy(r, &h)
+                                      : tsl_mpi_serve_front(r, &h));
+    }
+}
+
+tessel_status tsl_mpi_final(const ranks *r, tessel_status mine)
+{
+    int st = (int)mine;
+    MPI_Request req;
+    MPI_Ibcast(&st, 1, MPI_INT, 0, r->comm, &req);
+    int done = 0;
+    while (MPI_Test(&req, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && !done) {
+        struct timespec nap = {0, 2000000};
+        nanosleep(&nap, NULL);
+    }
+    return (tessel_status)st;
+}

@@ -1,0 +1,288 @@
+/* Greedy projection over MPI (include/tessel_mpi.h, docs/mpi.md): process 0
+ * meshes as one process does (src/greedy/tiles.c) with a runner that sends
+ * each tile's points to process k mod size, which meshes the tile
+ * (tsl_gp_tile_mesh_cloud) and sends back its triangles in the tile's
+ * numbering; process 0 then closes the seams, checks the orientation and
+ * flips the diagonals alone: the same bytes for any number of processes. */
+#include "greedy/greedy.h"
+#include "mpi/mpi.h"
+#include "tessel_mpi.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- process 0 ---- */
+
+/* Its own tiles, on its threads (no progress from inside: the callbacks
+ * are not called from worker threads). */
+static tessel_status mesh_mine(const ranks *r, const tsl_gp_tiles_job *job)
+{
+    size_t nt = job->count;
+    tessel_status *status = tsl_alloc_array(nt, sizeof *status);
+    if (!status)
+        return TESSEL_ERR_NOMEM;
+    long long count = (long long)nt;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
+    for (long long kk = 0; kk < count; kk++) {
+        size_t k = (size_t)kk;
+        status[k] = tsl_mpi_owner(r, k) == 0 ? tsl_gp_tile_mesh(job, k, NULL) : TESSEL_OK;
+    }
+    tessel_status st = TESSEL_OK;
+    for (size_t k = 0; k < nt && !st; k++)
+        st = status[k];
+    free(status);
+    return st;
+}
+
+/* Every other process's tiles, point by point in the tile's order, to it. */
+static tessel_status send_tiles(const ranks *r, const tsl_gp_tiles_job *job)
+{
+    const tsl_tiles *cut = job->cut;
+    size_t most = 0;
+    for (size_t k = 0; k < job->count; k++)
+        most = cut->start[k + 1] - cut->start[k] > most ? cut->start[k + 1] - cut->start[k] : most;
+    float *buf = tsl_alloc_array(3 * most + 1, sizeof *buf);
+    tessel_status st = tsl_mpi_agree(r->comm, buf ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    for (size_t k = 0; st == TESSEL_OK && k < job->count; k++) {
+        if (tsl_mpi_owner(r, k) == 0)
+            continue;
+        const uint32_t *ids = cut->ids + cut->start[k];
+        size_t m = cut->start[k + 1] - cut->start[k];
+        for (int block = 0; block < 1 + (job->cloud->normals != NULL); block++) {
+            const float *src = block ? job->cloud->normals : job->cloud->xyz;
+            for (size_t i = 0; i < m; i++)
+                memcpy(buf + 3 * i, src + 3 * (size_t)ids[i], 3 * sizeof *buf);
+            tsl_mpi_move(r->comm, 0, tsl_mpi_owner(r, k), buf, 3 * m, MPI_FLOAT, sizeof *buf);
+        }
+    }
+    free(buf);
+    return st;
+}
+
+/* The other processes' tiles back: triangles (mapped from the tile's
+ * order to the cloud's), summaries and fates. */
+static tessel_status receive_tiles(const ranks *r, const tsl_gp_tiles_job *job)
+{
+    size_t nt = job->count;
+    const tsl_tiles *cut = job->cut;
+    uint64_t *counts = tsl_calloc_array(nt, sizeof *counts);
+    if (tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM) != TESSEL_OK) {
+        free(counts);
+        return TESSEL_ERR_NOMEM;
+    }
+    tsl_mpi_sum_counts(r, counts, nt);
+    size_t most = 0;
+    tessel_status mine = TESSEL_OK;
+    for (size_t k = 0; k < nt && mine == TESSEL_OK; k++) {
+        gp_collect *c = &job->parts[k];
+        most = cut->start[k + 1] - cut->start[k] > most ? cut->start[k + 1] - cut->start[k] : most;
+        if (tsl_mpi_owner(r, k) == 0 || !counts[k])
+            continue;
+        c->tris = tsl_alloc_array((size_t)counts[k], 3 * sizeof *c->tris);
+        c->count = c->cap = c->tris ? (size_t)counts[k] : 0;
+        mine = c->tris ? TESSEL_OK : TESSEL_ERR_NOMEM;
+    }
+    free(counts);
+    uint8_t *fate = mine == TESSEL_OK ? tsl_alloc_array(most + 1, 1) : NULL;
+    if ((mine = tsl_mpi_agree(r->comm, fate ? TESSEL_OK : TESSEL_ERR_NOMEM)) != TESSEL_OK) {
+        free(fate);
+        return mine;
+    }
+    for (size_t k = 0; k < nt; k++) {
+        int from = tsl_mpi_owner(r, k);
+        if (from == 0)
+            continue;
+        gp_collect *c = &job->parts[k];
+        const uint32_t *ids = cut->ids + cut->start[k];
+        size_t m = cut->start[k + 1] - cut->start[k];
+        tsl_mpi_move(r->comm, from, 0, c->tris, 3 * c->count, MPI_UINT32_T, sizeof *c->tris);
+        for (size_t i = 0; i < 3 * c->count; i++)
+            c->tris[i] = ids[c->tris[i]];
+        tsl_mpi_move(r->comm, from, 0, &job->sums[k], sizeof job->sums[k], MPI_BYTE, 1);
+        tsl_mpi_move(r->comm, from, 0, fate, m, MPI_BYTE, 1);
+        for (size_t i = 0; i < m; i++)
+            job->fate[ids[i]] = fate[i];
+    }
+    free(fate);
+    return TESSEL_OK;
+}
+
+/* Process 0's runner: the other processes' tiles sent to them, its own
+ * meshed, theirs received; it then goes on alone (seams, orientation,
+ * flips, output). */
+static tessel_status run_ranks(void *ctx, const tsl_gp_tiles_job *job)
+{
+    const ranks *r = ctx;
+    tessel_status st = tsl_progress(job->callbacks, "greedy", 0.0);
+    const tessel_cloud *c = job->cloud;
+    tiles_head h = {.status = (int32_t)st, .kind = TILES_GREEDY, .normals = c->normals != NULL,
+                    .has_viewpoint = c->has_viewpoint, .count = job->count};
+    memcpy(h.offset, c->offset, sizeof h.offset);
+    memcpy(h.viewpoint, c->viewpoint, sizeof h.viewpoint);
+    tsl_mpi_head(r, h);
+    if (st != TESSEL_OK)
+        return st;
+    /* The tiles' parameters (tile_points 0, no existing triangles). */
+    tessel_greedy_params tp = *job->params;
+    MPI_Bcast(&tp, (int)sizeof tp, MPI_BYTE, 0, r->comm);
+    uint64_t *start;
+    if ((st = tsl_mpi_bcast_sizes(r, job->count, job->cut->start, &start)) != TESSEL_OK)
+        return st;
+    free(start);
+    if ((st = send_tiles(r, job)) != TESSEL_OK)
+        return st;
+    st = mesh_mine(r, job);
+    if ((st = tsl_mpi_agree(r->comm, st)) != TESSEL_OK)
+        return st;
+    if ((st = receive_tiles(r, job)) != TESSEL_OK)
+        return st;
+    return tsl_progress(job->callbacks, "greedy", 0.5);
+}
+
+/* ---- the other processes ---- */
+
+/* A process's own tiles: their points as received, their meshes. */
+typedef struct own_tiles {
+    size_t count;        /* tiles of this process */
+    size_t *k;           /* their numbers */
+    tessel_cloud *cloud; /* their points, in the tile's order */
+    gp_collect *parts;
+    tessel_recon_summary *sums;
+    uint8_t **fate;
+} own_tiles;
+
+static void own_free(own_tiles *o)
+{
+    for (size_t j = 0; j < o->count; j++) {
+        if (o->cloud)
+            tessel_cloud_free(&o->cloud[j]);
+        if (o->parts)
+            free(o->parts[j].tris);
+        if (o->fate)
+            free(o->fate[j]);
+    }
+    free(o->k);
+    free(o->cloud);
+    free(o->parts);
+    free(o->sums);
+    free(o->fate);
+    memset(o, 0, sizeof *o);
+}
+
+/* Room for this process's tiles of h (starts: their point ranges). */
+static tessel_status own_alloc(const ranks *r, const tiles_head *h, const uint64_t *start,
+                               own_tiles *o)
+{
+    size_t nt = (size_t)h->count;
+    o->count = nt / (size_t)r->size + (nt % (size_t)r->size > (size_t)r->rank);
+    o->k = tsl_calloc_array(o->count + 1, sizeof *o->k);
+    o->cloud = tsl_calloc_array(o->count + 1, sizeof *o->cloud);
+    o->parts = tsl_calloc_array(o->count + 1, sizeof *o->parts);
+    o->sums = tsl_calloc_array(o->count + 1, sizeof *o->sums);
+    o->fate = tsl_calloc_array(o->count + 1, sizeof *o->fate);
+    if (!o->k || !o->cloud || !o->parts || !o->sums || !o->fate)
+        return TESSEL_ERR_NOMEM;
+    for (size_t j = 0; j < o->count; j++) {
+        size_t k = (size_t)r->rank + j * (size_t)r->size, m = (size_t)(start[k + 1] - start[k]);
+        o->k[j] = k;
+        tessel_cloud *c = &o->cloud[j];
+        if (tessel_cloud_alloc(c, m, h->normals, 0) != TESSEL_OK ||
+            !(o->fate[j] = tsl_alloc_array(m + 1, 1)))
+            return TESSEL_ERR_NOMEM;
+        memcpy(c->offset, h->offset, sizeof c->offset);
+        memcpy(c->viewpoint, h->viewpoint, sizeof c->viewpoint);
+        c->has_viewpoint = h->has_viewpoint;
+    }
+    return TESSEL_OK;
+}
+
+static tessel_status mesh_own(const ranks *r, const tessel_greedy_params *params, own_tiles *o)
+{
+    tessel_status *status = tsl_alloc_array(o->count + 1, sizeof *status);
+    if (!status)
+        return TESSEL_ERR_NOMEM;
+    tessel_greedy_params tp = *params;
+    tp.tile_points = 0;
+    long long count = (long long)o->count;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
+    for (long long jj = 0; jj < count; jj++) {
+        size_t j = (size_t)jj;
+        status[j] = tsl_gp_tile_mesh_cloud(&o->cloud[j], &tp, NULL, &o->parts[j], o->fate[j],
+                                           &o->sums[j]);
+        tessel_cloud_free(&o->cloud[j]);
+    }
+    tessel_status st = TESSEL_OK;
+    for (size_t j = 0; j < o->count && !st; j++)
+        st = status[j];
+    free(status);
+    return st;
+}
+
+/* A process other than 0: receives its tiles, meshes them, sends them back
+ * (the other side of run_ranks). */
+tessel_status tsl_mpi_serve_greedy(const ranks *r, const tiles_head *head)
+{
+    tiles_head h = *head;
+    tessel_greedy_params params;
+    MPI_Bcast(&params, (int)sizeof params, MPI_BYTE, 0, r->comm);
+    params.existing = NULL; /* process 0's pointer: tiles have none */
+    params.frozen = NULL;
+    uint64_t *start = NULL;
+    own_tiles o = {0};
+    tessel_status st = tsl_mpi_bcast_sizes(r, (size_t)h.count, NULL, &start);
+    if (st != TESSEL_OK)
+        return st;
+    st = tsl_mpi_agree(r->comm, own_alloc(r, &h, start, &o)); /* send_tiles' agreement */
+    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
+        size_t m = o.cloud[j].count;
+        tsl_mpi_move(r->comm, 0, r->rank, o.cloud[j].xyz, 3 * m, MPI_FLOAT, sizeof(float));
+        if (h.normals)
+            tsl_mpi_move(r->comm, 0, r->rank, o.cloud[j].normals, 3 * m, MPI_FLOAT,
+                       sizeof(float));
+    }
+    if (st == TESSEL_OK)
+        st = tsl_mpi_agree(r->comm, mesh_own(r, &params, &o));
+    uint64_t *counts = NULL;
+    if (st == TESSEL_OK) {
+        counts = tsl_calloc_array((size_t)h.count, sizeof *counts);
+        st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    }
+    if (st == TESSEL_OK) {
+        for (size_t j = 0; j < o.count; j++)
+            counts[o.k[j]] = o.parts[j].count;
+        tsl_mpi_sum_counts(r, counts, (size_t)h.count);
+        st = tsl_mpi_agree(r->comm, TESSEL_OK); /* receive_tiles' room */
+    }
+    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
+        size_t m = (size_t)(start[o.k[j] + 1] - start[o.k[j]]);
+        tsl_mpi_move(r->comm, r->rank, 0, o.parts[j].tris, 3 * o.parts[j].count, MPI_UINT32_T,
+                   sizeof(uint32_t));
+        tsl_mpi_move(r->comm, r->rank, 0, &o.sums[j], sizeof o.sums[j], MPI_BYTE, 1);
+        tsl_mpi_move(r->comm, r->rank, 0, o.fate[j], m, MPI_BYTE, 1);
+    }
+    free(counts);
+    free(start);
+    own_free(&o);
+    return st;
+}
+
+
+tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
+                                            const tessel_greedy_params *params,
+                                            const tessel_callbacks *callbacks,
+                                            const tessel_triangle_sink *sink,
+                                            tessel_recon_summary *summary)
+{
+    tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
+    ranks r = tsl_mpi_ranks(comm, p.threads);
+    if (r.rank != 0)
+        return tsl_mpi_final(&r, tsl_mpi_serve(&r));
+    tsl_gp_tile_runner runner = {run_ranks, &r};
+    /* After the tiles the processes beside process 0 on its machine wait
+     * without a core: it takes their threads for the seams, the orientation
+     * check and the flips (the mesh does not depend on it). */
+    p.threads = r.last_threads;
+    tessel_status st = tsl_reconstruct_greedy_with(cloud, &p, &runner, callbacks, sink, summary);
+    tsl_mpi_head(&r, (tiles_head){.status = (int32_t)st, .kind = TILES_DONE});
+    return tsl_mpi_final(&r, st);
+}
