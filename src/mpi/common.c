@@ -8,10 +8,21 @@
 #include <omp.h>
 #endif
 
+void tsl_mpi_wait(MPI_Request *req)
+{
+    int done = 0;
+    while (MPI_Test(req, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && !done) {
+        struct timespec nap = {0, 100000};
+        nanosleep(&nap, NULL);
+    }
+}
+
 tessel_status tsl_mpi_agree(MPI_Comm comm, tessel_status mine)
 {
     int in = (int)mine, out = 0;
-    MPI_Allreduce(&in, &out, 1, MPI_INT, MPI_MAX, comm);
+    MPI_Request req;
+    MPI_Iallreduce(&in, &out, 1, MPI_INT, MPI_MAX, comm, &req);
+    tsl_mpi_wait(&req);
     return (tessel_status)out;
 }
 
@@ -20,7 +31,9 @@ void tsl_mpi_bcast(MPI_Comm comm, int root, void *buf, size_t count, MPI_Datatyp
 {
     for (size_t i = 0; i < count; i += PIECE) {
         size_t n = count - i < PIECE ? count - i : PIECE;
-        MPI_Bcast((char *)buf + i * size, (int)n, type, root, comm);
+        MPI_Request req;
+        MPI_Ibcast((char *)buf + i * size, (int)n, type, root, comm, &req);
+        tsl_mpi_wait(&req);
     }
 }
 
@@ -31,10 +44,14 @@ void tsl_mpi_move(MPI_Comm comm, int from, int to, void *buf, size_t count, MPI_
     MPI_Comm_rank(comm, &rank);
     for (size_t i = 0; i < count; i += PIECE) {
         int n = (int)(count - i < PIECE ? count - i : PIECE);
+        MPI_Request req;
         if (rank == from)
-            MPI_Send((char *)buf + i * size, n, type, to, 0, comm);
+            MPI_Isend((char *)buf + i * size, n, type, to, 0, comm, &req);
         else if (rank == to)
-            MPI_Recv((char *)buf + i * size, n, type, from, 0, comm, MPI_STATUS_IGNORE);
+            MPI_Irecv((char *)buf + i * size, n, type, from, 0, comm, &req);
+        else
+            continue;
+        tsl_mpi_wait(&req);
     }
 }
 
@@ -65,7 +82,7 @@ ranks tsl_mpi_ranks(MPI_Comm comm, int threads)
 
 tiles_head tsl_mpi_head(const ranks *r, tiles_head h)
 {
-    MPI_Bcast(&h, (int)sizeof h, MPI_BYTE, 0, r->comm);
+    tsl_mpi_bcast(r->comm, 0, &h, sizeof h, MPI_BYTE, 1);
     return h;
 }
 
@@ -86,7 +103,9 @@ void tsl_mpi_sum_counts(const ranks *r, uint64_t *counts, size_t nt)
 {
     for (size_t k = 0; k < nt; k += PIECE) {
         int n = (int)(nt - k < PIECE ? nt - k : PIECE);
-        MPI_Allreduce(MPI_IN_PLACE, counts + k, n, MPI_UINT64_T, MPI_SUM, r->comm);
+        MPI_Request req;
+        MPI_Iallreduce(MPI_IN_PLACE, counts + k, n, MPI_UINT64_T, MPI_SUM, r->comm, &req);
+        tsl_mpi_wait(&req);
     }
 }
 
@@ -108,12 +127,6 @@ tessel_status tsl_mpi_serve(const ranks *r)
 tessel_status tsl_mpi_final(const ranks *r, tessel_status mine)
 {
     int st = (int)mine;
-    MPI_Request req;
-    MPI_Ibcast(&st, 1, MPI_INT, 0, r->comm, &req);
-    int done = 0;
-    while (MPI_Test(&req, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && !done) {
-        struct timespec nap = {0, 2000000};
-        nanosleep(&nap, NULL);
-    }
+    tsl_mpi_bcast(r->comm, 0, &st, 1, MPI_INT, sizeof st);
     return (tessel_status)st;
 }

@@ -15,6 +15,11 @@
 /* MPI counts are int: arrays go in pieces of at most 2^28 elements. */
 #define PIECE ((size_t)1 << 28)
 
+/* Every wait below is for a request tested every 0.1 ms, the core given
+ * up in between: a process that waits (Open MPI's blocking calls poll
+ * without rest) must not take a core from one that works, process 0 runs
+ * on the cores of the processes beside it. */
+void tsl_mpi_wait(MPI_Request *req);
 /* The largest status of all processes. */
 tessel_status tsl_mpi_agree(MPI_Comm comm, tessel_status mine);
 /* count values from root to all, in pieces. */

@@ -6,6 +6,7 @@
  * greedy` writes with the same options, for any number of processes. A
  * failure anywhere stops every process and leaves no output. */
 #include "cli.h"
+#include "mpi/mpi.h"
 #include "tessel_mpi.h"
 
 #include <stdlib.h>
@@ -215,7 +216,7 @@ int main(int argc, char **argv)
         code = reconstruct(argc - 1, argv + 1, rank, procs);
         /* Every process exits with process 0's code (a failure to write
          * is process 0's alone). */
-        MPI_Bcast(&code, 1, MPI_INT, 0, MPI_COMM_WORLD);
+        tsl_mpi_bcast(MPI_COMM_WORLD, 0, &code, 1, MPI_INT, sizeof code);
     } else {
         bool asked = argc >= 2 && (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0);
         if (rank == 0)
