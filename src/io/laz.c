@@ -960,6 +960,12 @@ tessel_status tsl_laz_decode_all(tsl_laz *z, uint8_t *records, int threads,
     return laz_decode(z, NULL, records, threads, diag);
 }
 
+tessel_status tsl_laz_decode_chunks(tsl_laz *z, const uint8_t *select, uint8_t *records,
+                                    int threads, tessel_diag *diag)
+{
+    return laz_decode(z, select, records, threads, diag);
+}
+
 /* Whether two closed boxes {min, max} meet. */
 static bool boxes_meet(const double lo[3], const double hi[3], const double *box)
 {

@@ -71,6 +71,10 @@ tessel_status tsl_laz_read_next(tsl_laz *laz, uint8_t *records, size_t *count,
  * thread count. */
 tessel_status tsl_laz_decode_all(tsl_laz *laz, uint8_t *records, int threads,
                                  tessel_diag *diag);
+/* The same for the chunks k with select[k] set (select NULL: all), their
+ * records packed in file order. */
+tessel_status tsl_laz_decode_chunks(tsl_laz *laz, const uint8_t *select, uint8_t *records,
+                                    int threads, tessel_diag *diag);
 
 /* The chunks a read of z into b decodes: with b's box and a COPC
  * hierarchy, (*select)[k] says which (the nodes that meet the box, and the

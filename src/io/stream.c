@@ -361,13 +361,19 @@ static tessel_status part_laz(const uint8_t *data, size_t size, const char *name
             st = TESSEL_ERR_NOMEM;
         }
     }
-    size_t got = 0;
-    for (size_t k = k0; st == TESSEL_OK && k < k1; k++) {
-        if (select && !select[k])
-            continue;
-        st = tsl_laz_read_chunk(z, k, records + got * h->record_length, diag);
-        got += tsl_laz_chunk_points(z, k);
+    /* This part's chunks, on the threads (a process of a parallel read has
+     * its machine's share of cores). */
+    uint8_t *take = st == TESSEL_OK ? tsl_calloc_array(info->chunk_count + 1, 1) : NULL;
+    if (st == TESSEL_OK && !take) {
+        tsl_diag_set(diag, name, 0, 0, 0, "out of memory for %zu LAZ chunks", info->chunk_count);
+        st = TESSEL_ERR_NOMEM;
     }
+    for (size_t k = k0; take && k < k1; k++)
+        take[k] = !select || select[k];
+    if (st == TESSEL_OK && mine)
+        st = tsl_laz_decode_chunks(z, take, records, 0, diag);
+    free(take);
+    size_t got = st == TESSEL_OK ? (size_t)mine : 0;
     int shift = agreed_shift(j, h, records, got, st);
     if (st == TESSEL_OK)
         st = tsl_las_emit(records, got, h, shift, name,
