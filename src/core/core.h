@@ -268,7 +268,8 @@ typedef struct tsl_tiles {
     size_t nodes;
 } tsl_tiles;
 
-tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_tiles *t);
+tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, int threads,
+                            tsl_tiles *t);
 void tsl_tiles_free(tsl_tiles *t);
 
 #endif /* TESSEL_CORE_H */

@@ -2,7 +2,7 @@
  * then close the seams: recursive median bisection, each part cut along
  * the longest side of its box, until every tile has at most max_points
  * points. The cut depends on the points and max_points only, never on the
- * thread count. */
+ * thread count (the halves of a part are cut side by side). */
 #include "core/core.h"
 
 #include <stdlib.h>
@@ -64,17 +64,30 @@ static void select_key(tile_key *a, size_t n, size_t k)
     }
 }
 
-/* Cuts ids[lo .. hi) into tiles of at most max_points points (their ranges
- * appended to start[], the cuts to node[]); dcut[i] becomes the distance
- * of point i to the nearest cut bounding its tile, cut_axis[i] that cut's
- * axis. Returns the node of the first cut, TESSEL_NONE for a single tile. */
-static uint32_t bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, size_t hi,
-                       size_t max_points, int depth, tsl_tiles *t)
+/* Tiles in a part of m points: each cut halves a part, so the shape of the
+ * bisection (and with it every node's number and first tile) depends on m
+ * alone, which lets the halves be cut side by side. */
+static size_t tiles_of(size_t m, size_t max_points)
+{
+    return m <= max_points ? 1 : tiles_of(m / 2, max_points) + tiles_of(m - m / 2, max_points);
+}
+
+/* Parts smaller than this are cut by the thread that made them. */
+#define TASK_POINTS ((size_t)1 << 16)
+
+/* Cuts ids[lo .. hi) into tiles of at most max_points points, the first
+ * numbered `tile` (their ranges into start[]), its cuts numbered from
+ * `node` in preorder (into node[]); dcut[i] becomes the distance of point
+ * i to the nearest cut bounding its tile, cut_axis[i] that cut's axis. The
+ * lower half goes to another task when large: every part writes its own
+ * points, tiles and nodes. */
+static void bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t lo, size_t hi,
+                   size_t max_points, int depth, uint32_t node, size_t tile, tsl_tiles *t)
 {
     size_t m = hi - lo;
     if (m <= max_points) {
-        t->start[t->count++] = lo;
-        return TESSEL_NONE;
+        t->start[tile] = lo;
+        return;
     }
     float bl[3] = {INFINITY, INFINITY, INFINITY}, bh[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (size_t u = lo; u < hi; u++)
@@ -87,37 +100,39 @@ static uint32_t bisect(const float *xyz, uint32_t *ids, tile_key *keys, size_t l
     for (int c = 1; c < 3; c++)
         if (bh[c] - bl[c] > bh[axis] - bl[axis])
             axis = c;
+    tile_key *k = keys + lo;
     for (size_t u = 0; u < m; u++) {
-        keys[u].c = xyz[3 * (size_t)ids[lo + u] + axis];
-        keys[u].id = ids[lo + u];
+        k[u].c = xyz[3 * (size_t)ids[lo + u] + axis];
+        k[u].id = ids[lo + u];
     }
     size_t half = m / 2;
-    select_key(keys, m, half);
+    select_key(k, m, half);
     float left = -INFINITY;
     for (size_t u = 0; u < half; u++)
-        left = keys[u].c > left ? keys[u].c : left;
-    double cut = 0.5 * ((double)left + (double)keys[half].c);
+        left = k[u].c > left ? k[u].c : left;
+    double cut = 0.5 * ((double)left + (double)k[half].c);
     for (size_t u = 0; u < m; u++) {
-        ids[lo + u] = keys[u].id;
-        float d = (float)fabs((double)keys[u].c - cut);
-        if (d < t->dcut[keys[u].id]) {
-            t->dcut[keys[u].id] = d;
-            t->cut_axis[keys[u].id] = (uint8_t)axis;
+        ids[lo + u] = k[u].id;
+        float d = (float)fabs((double)k[u].c - cut);
+        if (d < t->dcut[k[u].id]) {
+            t->dcut[k[u].id] = d;
+            t->cut_axis[k[u].id] = (uint8_t)axis;
         }
     }
-    uint32_t id = (uint32_t)t->nodes++;
-    tsl_tile_node *nd = &t->node[id];
+    size_t low_tiles = tiles_of(half, max_points);
+    tsl_tile_node *nd = &t->node[node];
     nd->at = cut;
     nd->axis = (uint8_t)axis;
     nd->depth = (uint8_t)depth;
-    nd->first = (uint32_t)t->count;
-    uint32_t low = bisect(xyz, ids, keys, lo, lo + half, max_points, depth + 1, t);
-    t->node[id].mid = (uint32_t)t->count;
-    uint32_t high = bisect(xyz, ids, keys, lo + half, hi, max_points, depth + 1, t);
-    t->node[id].low = low;
-    t->node[id].high = high;
-    t->node[id].end = (uint32_t)t->count;
-    return id;
+    nd->first = (uint32_t)tile;
+    nd->mid = (uint32_t)(tile + low_tiles);
+    nd->end = (uint32_t)(tile + tiles_of(m, max_points));
+    nd->low = half > max_points ? node + 1 : TESSEL_NONE;
+    nd->high = m - half > max_points ? node + (uint32_t)low_tiles : TESSEL_NONE;
+#pragma omp task if (half >= TASK_POINTS)
+    bisect(xyz, ids, keys, lo, lo + half, max_points, depth + 1, node + 1, tile, t);
+    bisect(xyz, ids, keys, lo + half, hi, max_points, depth + 1, node + (uint32_t)low_tiles,
+           tile + low_tiles, t);
 }
 
 void tsl_tiles_free(tsl_tiles *t)
@@ -131,7 +146,8 @@ void tsl_tiles_free(tsl_tiles *t)
     memset(t, 0, sizeof *t);
 }
 
-tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_tiles *t)
+tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, int threads,
+                            tsl_tiles *t)
 {
     memset(t, 0, sizeof *t);
     if (max_points == 0)
@@ -154,7 +170,11 @@ tessel_status tsl_tiles_cut(const float *xyz, size_t n, size_t max_points, tsl_t
         t->ids[i] = (uint32_t)i;
         t->dcut[i] = INFINITY;
     }
-    bisect(xyz, t->ids, keys, 0, n, max_points, 0, t);
+    t->count = tiles_of(n, max_points);
+    t->nodes = t->count - 1;
+#pragma omp parallel num_threads(tsl_threads(threads))
+#pragma omp single
+    bisect(xyz, t->ids, keys, 0, n, max_points, 0, 0, 0, t);
     free(keys);
     t->start[t->count] = n;
     for (size_t k = 0; k < t->count; k++)

@@ -296,7 +296,7 @@ tessel_status tsl_af_run_tiles(af *s, const tessel_front_params *p, double mean_
                                const tsl_af_tile_runner *runner, const tessel_callbacks *cb)
 {
     tsl_tiles cut;
-    tessel_status st = tsl_tiles_cut(s->xyz, s->n, p->tile_points, &cut);
+    tessel_status st = tsl_tiles_cut(s->xyz, s->n, p->tile_points, p->threads, &cut);
     if (st)
         return st;
     size_t cap = cut.count, nt = cut.count;

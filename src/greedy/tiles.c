@@ -493,7 +493,8 @@ static tessel_status mesh_tiles(const tessel_cloud *cloud, const tessel_greedy_p
 {
     *parts = NULL;
     *sums = NULL;
-    tessel_status st = tsl_tiles_cut(cloud->xyz, cloud->count, params->tile_points, cut);
+    tessel_status st = tsl_tiles_cut(cloud->xyz, cloud->count, params->tile_points,
+                                     params->threads, cut);
     if (st)
         return st;
     *parts = tsl_calloc_array(cut->count, sizeof **parts);
