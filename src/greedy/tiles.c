@@ -236,11 +236,14 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
     id_list pts = {NULL, 0, 0};
     uint32_t *ids = NULL;
     tessel_status st = count && g ? TESSEL_OK : TESSEL_ERR_NOMEM;
-    for (size_t i = 0; !st && i < nsel; i++) {
-        seam_slot(cloud, cut, group, gid, selected[i], level, near, edge, slot);
+    /* Each selected point's slot on the threads (it writes its own). */
+    long long nselected = st ? 0 : (long long)nsel;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(params->threads))
+    for (long long ii = 0; ii < nselected; ii++)
+        seam_slot(cloud, cut, group, gid, selected[ii], level, near, edge, slot);
+    for (size_t i = 0; !st && i < nsel; i++)
         if (slot[selected[i]] != TESSEL_NONE)
             st = id_push(&pts, selected[i]);
-    }
     /* The other vertices of the triangles at a group's points join it,
      * frozen: its guard then sees every triangle at its points (without
      * them, a front at a group's edge laid a second sheet over triangles it
