@@ -807,20 +807,36 @@ static tessel_status ascii_element(ply_reader *r, tsl_builder *b, const ply_elem
     return TESSEL_OK;
 }
 
+/* The header read and checked (check_layout; the builder's room made when
+ * reserve), r set up for the data; *organized: a grid was announced. */
+static tessel_status open_reader(ply_reader *r, const uint8_t *data, size_t size,
+                                 const char *name, int want_faces, bool reserve, tsl_builder *b,
+                                 bool *organized, tessel_diag *diag)
+{
+    memset(r, 0, sizeof *r);
+    r->data = data;
+    r->size = size;
+    r->name = name;
+    r->diag = diag;
+    uint64_t w = 0, h = 0, org_line = 0;
+    tessel_status st = parse_header(r, b, organized, &w, &h, &org_line);
+    return st ? st : check_layout(r, b, want_faces, *organized, w, h, org_line, reserve);
+}
+
+static void close_reader(ply_reader *r)
+{
+    for (size_t i = 0; i < r->nelems; i++)
+        free(r->elems[i].props);
+    free(r->elems);
+    free(r->poly);
+}
+
 tessel_status tsl_parse_ply(const uint8_t *data, size_t size, const char *name,
                             int want_faces, tsl_builder *b, tessel_diag *diag)
 {
     ply_reader r;
-    memset(&r, 0, sizeof r);
-    r.data = data;
-    r.size = size;
-    r.name = name;
-    r.diag = diag;
     bool organized;
-    uint64_t w = 0, h = 0, org_line = 0;
-    tessel_status st = parse_header(&r, b, &organized, &w, &h, &org_line);
-    if (st == TESSEL_OK)
-        st = check_layout(&r, b, want_faces, organized, w, h, org_line, true);
+    tessel_status st = open_reader(&r, data, size, name, want_faces, true, b, &organized, diag);
     /* Elements in file order; stop once nothing wanted is left. */
     bool vertex_done = false, faces_left = false;
     for (size_t i = 0; st == TESSEL_OK && i < r.nelems; i++) {
@@ -839,10 +855,7 @@ tessel_status tsl_parse_ply(const uint8_t *data, size_t size, const char *name,
         if (&r.elems[i] == r.vertex)
             vertex_done = true;
     }
-    for (size_t i = 0; i < r.nelems; i++)
-        free(r.elems[i].props);
-    free(r.elems);
-    free(r.poly);
+    close_reader(&r);
     return st;
 }
 
@@ -867,17 +880,9 @@ tessel_status tsl_parse_ply_part(const uint8_t *data, size_t size, const char *n
                                  size_t parts, tsl_builder *b, bool *whole, tessel_diag *diag)
 {
     ply_reader r;
-    memset(&r, 0, sizeof r);
-    r.data = data;
-    r.size = size;
-    r.name = name;
-    r.diag = diag;
-    *whole = false;
     bool organized;
-    uint64_t w = 0, h = 0, org_line = 0;
-    tessel_status st = parse_header(&r, b, &organized, &w, &h, &org_line);
-    if (st == TESSEL_OK)
-        st = check_layout(&r, b, 0, organized, w, h, org_line, false);
+    *whole = false;
+    tessel_status st = open_reader(&r, data, size, name, 0, false, b, &organized, diag);
     size_t at = st == TESSEL_OK ? vertex_start(&r, b, organized) : 0;
     if (st == TESSEL_OK && at == 0)
         *whole = true;
@@ -893,9 +898,7 @@ tessel_status tsl_parse_ply_part(const uint8_t *data, size_t size, const char *n
             st = fixed_vertices(&r, b, e, data + at + (size_t)first * e->min_bytes,
                                 last - first);
     }
-    for (size_t i = 0; i < r.nelems; i++)
-        free(r.elems[i].props);
-    free(r.elems);
+    close_reader(&r);
     return st;
 }
 

@@ -1,6 +1,7 @@
 /* The collective steps and the tiles' protocol of src/mpi/ (mpi.h). */
 #include "mpi/mpi.h"
 
+#include <stdlib.h>
 #include <string.h>
 #include <time.h>
 
@@ -78,6 +79,26 @@ ranks tsl_mpi_ranks(MPI_Comm comm, int threads)
         want = cores > one ? cores : one;
     r.last_threads = (int)want;
     return r;
+}
+
+tessel_status tsl_mpi_each_mine(const ranks *r, size_t count,
+                                tessel_status (*tile)(const void *job, size_t k),
+                                const void *job)
+{
+    tessel_status *status = tsl_alloc_array(count + 1, sizeof *status);
+    if (!status)
+        return TESSEL_ERR_NOMEM;
+    long long n = (long long)count;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
+    for (long long kk = 0; kk < n; kk++) {
+        size_t k = (size_t)kk;
+        status[k] = tsl_mpi_owner(r, k) == r->rank ? tile(job, k) : TESSEL_OK;
+    }
+    tessel_status st = TESSEL_OK;
+    for (size_t k = 0; k < count && !st; k++)
+        st = status[k];
+    free(status);
+    return st;
 }
 
 tiles_head tsl_mpi_head(const ranks *r, tiles_head h)

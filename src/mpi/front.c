@@ -40,23 +40,10 @@ static void move_result(MPI_Comm comm, int from, af *t)
 
 /* ---- process 0 ---- */
 
-static tessel_status mesh_mine(const ranks *r, const tsl_af_tiles_job *job)
+/* One of process 0's own tiles. */
+static tessel_status mesh_one(const void *job, size_t k)
 {
-    size_t nt = job->count;
-    tessel_status *status = tsl_alloc_array(nt + 1, sizeof *status);
-    if (!status)
-        return TESSEL_ERR_NOMEM;
-    long long count = (long long)nt;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
-    for (long long kk = 0; kk < count; kk++) {
-        size_t k = (size_t)kk;
-        status[k] = tsl_mpi_owner(r, k) == 0 ? tsl_af_tile(job, k, NULL) : TESSEL_OK;
-    }
-    tessel_status st = TESSEL_OK;
-    for (size_t k = 0; k < nt && !st; k++)
-        st = status[k];
-    free(status);
-    return st;
+    return tsl_af_tile((const tsl_af_tiles_job *)job, k, NULL);
 }
 
 /* Each other process's tiles to it, tile by tile (the inputs are made
@@ -126,7 +113,7 @@ static tessel_status run_ranks(void *ctx, const tsl_af_tiles_job *job)
     if (st == TESSEL_OK)
         st = send_tiles(r, job);
     if (st == TESSEL_OK)
-        st = tsl_mpi_agree(r->comm, mesh_mine(r, job));
+        st = tsl_mpi_agree(r->comm, tsl_mpi_each_mine(r, job->count, mesh_one, job));
     if (st == TESSEL_OK)
         st = receive_tiles(r, job);
     return st;

@@ -13,25 +13,10 @@
 
 /* ---- process 0 ---- */
 
-/* Its own tiles, on its threads (no progress from inside: the callbacks
- * are not called from worker threads). */
-static tessel_status mesh_mine(const ranks *r, const tsl_gp_tiles_job *job)
+/* One of process 0's own tiles. */
+static tessel_status mesh_one(const void *job, size_t k)
 {
-    size_t nt = job->count;
-    tessel_status *status = tsl_alloc_array(nt, sizeof *status);
-    if (!status)
-        return TESSEL_ERR_NOMEM;
-    long long count = (long long)nt;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
-    for (long long kk = 0; kk < count; kk++) {
-        size_t k = (size_t)kk;
-        status[k] = tsl_mpi_owner(r, k) == 0 ? tsl_gp_tile_mesh(job, k, NULL) : TESSEL_OK;
-    }
-    tessel_status st = TESSEL_OK;
-    for (size_t k = 0; k < nt && !st; k++)
-        st = status[k];
-    free(status);
-    return st;
+    return tsl_gp_tile_mesh((const tsl_gp_tiles_job *)job, k, NULL);
 }
 
 /* Every other process's tiles, point by point in the tile's order, to it. */
@@ -131,7 +116,7 @@ static tessel_status run_ranks(void *ctx, const tsl_gp_tiles_job *job)
     free(start);
     if ((st = send_tiles(r, job)) != TESSEL_OK)
         return st;
-    st = mesh_mine(r, job);
+    st = tsl_mpi_each_mine(r, job->count, mesh_one, job);
     if ((st = tsl_mpi_agree(r->comm, st)) != TESSEL_OK)
         return st;
     if ((st = receive_tiles(r, job)) != TESSEL_OK)

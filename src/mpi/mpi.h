@@ -58,6 +58,13 @@ typedef struct tiles_head {
     tessel_front_params front; /* front: the parameters it runs with */
 } tiles_head;
 
+/* This process's tiles among count (k with tsl_mpi_owner(r, k) == r->rank),
+ * each by tile(job, k), on r->tile_threads threads (no progress from
+ * inside: the callbacks are not called from worker threads); the first
+ * failure in tile order. */
+tessel_status tsl_mpi_each_mine(const ranks *r, size_t count,
+                                tessel_status (*tile)(const void *job, size_t k),
+                                const void *job);
 /* Process 0's head to all (the others pass anything). */
 tiles_head tsl_mpi_head(const ranks *r, tiles_head h);
 /* count + 1 sizes or offsets from process 0 (from) to all, into *out. */
