@@ -1,6 +1,6 @@
 #!/bin/sh
-# tessel-mpi against tessel: the same bytes for -np 1..4 and any thread
-# count; a failure on input or output stops every process with a message
+# tessel-mpi against tessel: the same bytes for -np 1..4 and one or two
+# threads; a failure on input or output stops every process with a message
 # and leaves no file. Usage: run.sh BUILD_DIR MPIEXEC [MPIEXEC_FLAGS...]
 set -u
 build=$1
@@ -29,15 +29,15 @@ check "tessel writes the reference" $?
 "$build/tessel" check "$work/ref.ply" --json >"$work/check.json"
 grep -q '"valid": true' "$work/check.json"
 check "the reference is valid (manifold, oriented, no self-intersection)" $?
-for np in 1 2 3 4; do
-    for t in 1 2; do
-        run_mpi "$np" reconstruct "$cloud" "$work/m.ply" --tile-points 8192 --threads "$t" \
-            --quiet
-        st=$?
-        cmp -s "$work/ref.ply" "$work/m.ply"
-        check "-np $np --threads $t: exit $st, the same bytes as tessel" $(( $? + st ))
-        rm -f "$work/m.ply"
-    done
+# Each process count once, one or two threads in turn (the meshes do not
+# depend on either).
+for run in "1 2" "2 1" "3 2" "4 1"; do
+    set -- $run
+    run_mpi "$1" reconstruct "$cloud" "$work/m.ply" --tile-points 8192 --threads "$2" --quiet
+    st=$?
+    cmp -s "$work/ref.ply" "$work/m.ply"
+    check "-np $1 --threads $2: exit $st, the same bytes as tessel" $(( $? + st ))
+    rm -f "$work/m.ply"
 done
 # Reading in parts: every process's cloud is the one-process read, bit for
 # bit (binary PLY with doubles far from the origin, normals, colours and
