@@ -151,3 +151,9 @@ tessel_status tsl_mpi_final(const ranks *r, tessel_status mine)
     tsl_mpi_bcast(r->comm, 0, &st, 1, MPI_INT, sizeof st);
     return (tessel_status)st;
 }
+
+tessel_status tsl_mpi_done(const ranks *r, tessel_status st)
+{
+    tsl_mpi_head(r, (tiles_head){.status = (int32_t)st, .kind = TILES_DONE});
+    return tsl_mpi_final(r, st);
+}

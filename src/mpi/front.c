@@ -212,6 +212,5 @@ tessel_status tessel_mpi_reconstruct_smooth(MPI_Comm comm, const tessel_cloud *c
      * the processes beside it, which wait without a core. */
     p.threads = r.last_threads;
     tessel_status st = tsl_reconstruct_smooth_with(cloud, &p, &runner, callbacks, mesh, stats);
-    tsl_mpi_head(&r, (tiles_head){.status = (int32_t)st, .kind = TILES_DONE});
-    return tsl_mpi_final(&r, st);
+    return tsl_mpi_done(&r, st);
 }

@@ -268,6 +268,5 @@ tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *c
      * check and the flips (the mesh does not depend on it). */
     p.threads = r.last_threads;
     tessel_status st = tsl_reconstruct_greedy_with(cloud, &p, &runner, callbacks, sink, summary);
-    tsl_mpi_head(&r, (tiles_head){.status = (int32_t)st, .kind = TILES_DONE});
-    return tsl_mpi_final(&r, st);
+    return tsl_mpi_done(&r, st);
 }

@@ -77,6 +77,8 @@ tessel_status tsl_mpi_serve(const ranks *r);
 /* Process 0's last word and everyone's result: its status, waited for
  * without spinning. */
 tessel_status tsl_mpi_final(const ranks *r, tessel_status mine);
+/* Process 0's end of a method: done with tiles, then its final status. */
+tessel_status tsl_mpi_done(const ranks *r, tessel_status st);
 
 /* The tiles of each kind, on a process other than 0 (greedy.c, front.c). */
 tessel_status tsl_mpi_serve_greedy(const ranks *r, const tiles_head *h);
