@@ -211,11 +211,6 @@ double tsl_height_offset(const tsl_height *h, const double d[3])
            tsl_dot(d, h->normal);
 }
 
-/* One seed's estimate, at the smallest ball (K_MIN, 2 K_MIN, ... k
- * nearest) whose cylinder reaches above the noise: *var the residual
- * variance there, *radius the ball's radius, *count its points, *slab
- * whether it reaches above the noise (else the largest ball's figures).
- * False when it has too few neighbours or points. */
 enum { SEED_NONE, SEED_NOISY, SEED_SLAB };
 
 /* One seed's estimate at the smallest ball (K_MIN, 2 K_MIN, ... k nearest)
@@ -225,10 +220,14 @@ enum { SEED_NONE, SEED_NOISY, SEED_SLAB };
 static int seed_estimate(const tessel_index *ix, const float *xyz, const float q[3], size_t k,
                          uint32_t *idx, float *d2, double *work, double *var, double *density)
 {
-    if (tessel_index_knn(ix, q, k, idx, d2) < k)
-        return SEED_NONE;
     int why = SEED_NONE;
+    /* Each ball queried as it is reached: a clean cloud's first ball
+     * settles it, and a query costs with its size. The K nearest come in
+     * order of distance, then index, so each ball holds the same points in
+     * the same order as a prefix of one query of k would. */
     for (size_t K = K_MIN; K <= k; K = 2 * K < k && 2 * K > K ? 2 * K : (K == k ? k + 1 : k)) {
+        if (tessel_index_knn(ix, q, K, idx, d2) < K)
+            return SEED_NONE;
         double R2 = (double)d2[K - 1];
         size_t C = K / 2 < CYLINDER ? K / 2 : CYLINDER;
         double rho2 = R2 * (double)C / (double)K;
