@@ -158,15 +158,21 @@ static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double
     float *xyz = hash_subset(cloud, hash_limit(FIT_POINTS / span), &m);
     float *cxyz = hash_subset(cloud, hash_limit(1.0 / (ratio * ratio)), &nc);
     tsl_height *fit = tsl_alloc_array(nc ? nc : 1, sizeof *fit);
+    uint32_t *order = tsl_alloc_array(nc ? nc : 1, sizeof *order);
     uint32_t *idx = tsl_alloc_array((size_t)nt * k_fit, sizeof *idx);
     float *dist = tsl_alloc_array((size_t)nt * k_fit, sizeof *dist);
     double *work = tsl_alloc_array((size_t)nt * k_fit, 4 * sizeof *work);
     tessel_index *ix = NULL, *cx = NULL;
     tessel_status st = TESSEL_OK;
-    if (!xyz || !cxyz || !fit || !idx || !dist || !work)
+    if (!xyz || !cxyz || !fit || !order || !idx || !dist || !work)
         st = TESSEL_ERR_NOMEM;
     if (!st && m >= k_fit && nc && !(st = tessel_index_build(&ix, xyz, m)) &&
         !(st = tessel_index_build(&cx, cxyz, nc))) {
+        /* The centres in the order of their tree, which is near in space:
+         * consecutive queries then read the same part of the cloud's tree
+         * (in the cloud's order, a random one for a uniform sample, each
+         * query waited on memory). Each fit goes to its centre's slot. */
+        tsl_index_order(cx, order);
 #pragma omp parallel num_threads(nt)
         {
             int t = omp_get_thread_num();
@@ -174,7 +180,8 @@ static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double
             float *d2 = dist + (size_t)t * k_fit;
             double *wk = work + (size_t)t * 4 * k_fit;
 #pragma omp for schedule(dynamic, 64)
-            for (size_t c = 0; c < nc; c++) {
+            for (size_t j = 0; j < nc; j++) {
+                size_t c = order[j];
                 const float *q = cxyz + 3 * c;
                 size_t k = tessel_index_knn(ix, q, k_fit, id, d2);
                 if (k < k_fit || !tsl_height_fit(xyz, q, id, k, (double)d2[k - 1], wk, &fit[c]))
@@ -219,6 +226,7 @@ static tessel_status fit_thinned(const tessel_cloud *cloud, double sigma, double
     free(dist);
     free(idx);
     free(fit);
+    free(order);
     free(cxyz);
     free(xyz);
     return st;
