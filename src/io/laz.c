@@ -898,6 +898,43 @@ tessel_status tsl_laz_read_next(tsl_laz *z, uint8_t *records, size_t *count,
     return st;
 }
 
+/* Decodes the selected chunks among k..k+step-1 (step 1 or 2, as many as
+ * the file has) from memory with a table: chunk j into records + dest[j]
+ * records, its status into cs[j]. Two chunks go together when both are
+ * selected and there are two decoders; dec[0] NULL: out of memory. */
+static void laz_decode_pair(const tsl_laz *z, laz_decoder *dec[2], const uint8_t *select,
+                            size_t k, size_t step, uint8_t *records, const uint64_t *dest,
+                            laz_chunk_status *cs)
+{
+    size_t rl = z->info.header.record_length, m = 0, js[2];
+    for (size_t j = k; j < k + step && j < z->info.chunk_count; j++)
+        if (!select || select[j])
+            js[m++] = j;
+    const uint8_t *p[2], *end[2];
+    size_t count[2], consumed[2];
+    uint8_t *out[2];
+    for (size_t t = 0; t < m; t++) {
+        p[t] = z->data + z->starts[js[t]];
+        end[t] = z->data + z->starts[js[t] + 1];
+        count[t] = tsl_laz_chunk_points(z, js[t]);
+        out[t] = records + dest[js[t]] * rl;
+    }
+    if (m == 2 && dec[0] && dec[1]) {
+        laz_chunk_status st[2];
+        laz_decode_chunk2(dec, p, end, count, out, consumed, st);
+        cs[js[0]] = st[0];
+        cs[js[1]] = st[1];
+        return;
+    }
+    for (size_t t = 0; t < m; t++) {
+        if (dec[0])
+            laz_decode_chunk(dec[0], p[t], end[t], count[t], out[t], &consumed[t],
+                             &cs[js[t]]);
+        else
+            cs[js[t]].fail = LAZ_FAIL_NOMEM;
+    }
+}
+
 /* Decodes the chunks with select[k] set (all when select is NULL) into
  * records, packed in file order. */
 static tessel_status laz_decode(tsl_laz *z, const uint8_t *select, uint8_t *records,
@@ -926,25 +963,23 @@ static tessel_status laz_decode(tsl_laz *z, const uint8_t *select, uint8_t *reco
         tsl_diag_set(diag, z->name, 0, 0, 0, "out of memory for %zu LAZ chunks", n);
         return TESSEL_ERR_NOMEM;
     }
-    /* One decoder per thread; every chunk writes its own records and its
-     * own status, so the result is that of the sequential loop. */
-#pragma omp parallel num_threads(tsl_threads(threads))
+    /* Two decoders per thread, which takes the chunks two by two (decoded
+     * together, laz_decode_chunk2), unless that would leave a thread idle;
+     * every chunk writes its own records and its own status, so the result
+     * is that of the sequential loop. */
+    int nt = tsl_threads(threads);
+    size_t step = n >= 2 * (size_t)nt ? 2 : 1;
+#pragma omp parallel num_threads(nt)
     {
-        laz_decoder *dec = laz_decoder_create(z->items, z->n_items, z->info.compressor == 3);
+        laz_decoder *dec[2] = {
+            laz_decoder_create(z->items, z->n_items, z->info.compressor == 3),
+            step == 2 ? laz_decoder_create(z->items, z->n_items, z->info.compressor == 3)
+                      : NULL};
 #pragma omp for schedule(dynamic, 1)
-        for (size_t k = 0; k < n; k++) {
-            if (select && !select[k])
-                continue;
-            if (!dec) {
-                cs[k].fail = LAZ_FAIL_NOMEM;
-                continue;
-            }
-            size_t consumed;
-            const uint8_t *p = z->data + z->starts[k];
-            laz_decode_chunk(dec, p, z->data + z->starts[k + 1], tsl_laz_chunk_points(z, k),
-                             records + dest[k] * rl, &consumed, &cs[k]);
-        }
-        laz_decoder_destroy(dec);
+        for (size_t u = 0; u < (n + step - 1) / step; u++)
+            laz_decode_pair(z, dec, select, u * step, step, records, dest, cs);
+        laz_decoder_destroy(dec[0]);
+        laz_decoder_destroy(dec[1]);
     }
     for (size_t k = 0; k < n && st == TESSEL_OK; k++)
         if (cs[k].fail)

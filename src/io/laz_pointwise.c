@@ -277,24 +277,31 @@ static void p10_read_v1(p10_state *s, laz_dec *d, uint8_t *out)
     p10_store(p, out);
 }
 
-LAZ_INLINE void p10_read_v2(p10_state *s, laz_dec *d, uint8_t *out)
+/* The return context of a POINT10 v2 point: number of returns n, return
+ * map m and level l. */
+typedef struct p10_ctx {
+    uint32_t n, m, l;
+} p10_ctx;
+
+/* POINT10 v2 is decoded in four steps (the changed fields, then X, Y and Z)
+ * so that two chunks decoded together can alternate between them. */
+LAZ_INLINE p10_ctx p10_head_v2(p10_state *s, laz_dec *d)
 {
     p10_point *p = &s->last;
     uint32_t changed = laz_decode_symbol(d, &s->changed);
-    uint32_t r, n, m, l;
+    p10_ctx c;
     if (changed) {
         if (changed & 32)
             p->bits = p10_byte(d, s->bit_byte, s->bit_byte_ready, p->bits);
-        r = p->bits & 7;
-        n = (p->bits >> 3) & 7;
-        m = p10_return_map[n][r];
-        l = p10_return_level[n][r];
+        c.n = (p->bits >> 3) & 7;
+        c.m = p10_return_map[c.n][p->bits & 7];
+        c.l = p10_return_level[c.n][p->bits & 7];
         if (changed & 16) {
-            p->intensity = (uint16_t)laz_ic_decompress(&s->ic_intensity, d,
-                                                       s->last_intensity[m], m < 3 ? m : 3);
-            s->last_intensity[m] = p->intensity;
+            p->intensity = (uint16_t)laz_ic_decompress(
+                &s->ic_intensity, d, s->last_intensity[c.m], c.m < 3 ? c.m : 3);
+            s->last_intensity[c.m] = p->intensity;
         } else {
-            p->intensity = s->last_intensity[m];
+            p->intensity = s->last_intensity[c.m];
         }
         if (changed & 8)
             p->cls = p10_byte(d, s->cls_model, s->cls_ready, p->cls);
@@ -307,24 +314,44 @@ LAZ_INLINE void p10_read_v2(p10_state *s, laz_dec *d, uint8_t *out)
         if (changed & 1)
             p->psid = (uint16_t)laz_ic_decompress(&s->ic_psid, d, p->psid, 0);
     } else {
-        r = p->bits & 7;
-        n = (p->bits >> 3) & 7;
-        m = p10_return_map[n][r];
-        l = p10_return_level[n][r];
+        c.n = (p->bits >> 3) & 7;
+        c.m = p10_return_map[c.n][p->bits & 7];
+        c.l = p10_return_level[c.n][p->bits & 7];
     }
-    int32_t diff = laz_ic_decompress(&s->ic_dx, d, s->xdiff[m].v[2], n == 1);
-    p->x += (uint32_t)diff;
-    laz_median5_add(&s->xdiff[m], diff);
+    return c;
+}
+
+LAZ_INLINE void p10_x_v2(p10_state *s, laz_dec *d, p10_ctx c)
+{
+    int32_t diff = laz_ic_decompress(&s->ic_dx, d, s->xdiff[c.m].v[2], c.n == 1);
+    s->last.x += (uint32_t)diff;
+    laz_median5_add(&s->xdiff[c.m], diff);
+}
+
+LAZ_INLINE void p10_y_v2(p10_state *s, laz_dec *d, p10_ctx c)
+{
     uint32_t k = s->ic_dx.k;
-    diff = laz_ic_decompress(&s->ic_dy, d, s->ydiff[m].v[2],
-                             (n == 1) + (k < 20 ? (k & ~1u) : 20));
-    p->y += (uint32_t)diff;
-    laz_median5_add(&s->ydiff[m], diff);
-    k = (s->ic_dx.k + s->ic_dy.k) / 2;
-    p->z = (uint32_t)laz_ic_decompress(&s->ic_z, d, s->last_height[l],
-                                       (n == 1) + (k < 18 ? (k & ~1u) : 18));
-    s->last_height[l] = laz_i32(p->z);
-    p10_store(p, out);
+    int32_t diff = laz_ic_decompress(&s->ic_dy, d, s->ydiff[c.m].v[2],
+                                     (c.n == 1) + (k < 20 ? (k & ~1u) : 20));
+    s->last.y += (uint32_t)diff;
+    laz_median5_add(&s->ydiff[c.m], diff);
+}
+
+LAZ_INLINE void p10_z_v2(p10_state *s, laz_dec *d, p10_ctx c, uint8_t *out)
+{
+    uint32_t k = (s->ic_dx.k + s->ic_dy.k) / 2;
+    s->last.z = (uint32_t)laz_ic_decompress(&s->ic_z, d, s->last_height[c.l],
+                                            (c.n == 1) + (k < 18 ? (k & ~1u) : 18));
+    s->last_height[c.l] = laz_i32(s->last.z);
+    p10_store(&s->last, out);
+}
+
+LAZ_INLINE void p10_read_v2(p10_state *s, laz_dec *d, uint8_t *out)
+{
+    p10_ctx c = p10_head_v2(s, d);
+    p10_x_v2(s, d, c);
+    p10_y_v2(s, d, c);
+    p10_z_v2(s, d, c, out);
 }
 
 /* ---- GPSTIME11 ---- */
@@ -788,54 +815,95 @@ static void pw_read_point(laz_decoder *dec, laz_dec *d, uint8_t *out)
     }
 }
 
-/* Points 1..count-1 of a chunk of the common formats 0-3 (POINT10, then
- * GPSTIME11 and RGB12 as present, all version 2): every item inlined, so
- * the arithmetic decoder stays in registers from point to point. Returns
- * the index of the point that raised a flag, or count. */
-static size_t pw_chunk_v2(laz_decoder *dec, laz_dec *dp, size_t count, uint8_t *out)
+/* The items of a chunk of the common formats 0-3: POINT10, then GPSTIME11
+ * and RGB12 as present, all version 2 (dec->v2_p10). */
+typedef struct pw_v2 {
+    p10_state *p10;
+    gps_state *gps;
+    rgb_state *rgb;
+    size_t rl, at_rgb;
+} pw_v2;
+
+static pw_v2 pw_v2_items(const laz_decoder *dec)
 {
-    laz_dec d = *dp;
-    p10_state *p10 = dec->items[0].state;
-    gps_state *gps = NULL;
-    rgb_state *rgb = NULL;
+    pw_v2 v = {dec->items[0].state, NULL, NULL, dec->record_length, 20};
     for (unsigned k = 1; k < dec->n_items; k++) {
         if (dec->items[k].type == LAZ_GPSTIME11)
-            gps = dec->items[k].state;
+            v.gps = dec->items[k].state;
         else
-            rgb = dec->items[k].state;
+            v.rgb = dec->items[k].state;
     }
-    size_t rl = dec->record_length, i = 1, at_rgb = gps ? 28 : 20;
+    v.at_rgb = v.gps ? 28 : 20;
+    return v;
+}
+
+/* GPSTIME11 and RGB12 of a point, as present. */
+LAZ_INLINE void pw_v2_tail(const pw_v2 *v, laz_dec *d, uint8_t *rec)
+{
+    if (v->gps)
+        gps_read_v2(v->gps, d, rec + 20);
+    if (v->rgb)
+        rgb_read_v2(v->rgb, d, rec + v->at_rgb);
+}
+
+/* Points i..count-1 of a formats 0-3 chunk: every item inlined, so the
+ * arithmetic decoder stays in registers from point to point. Stops after
+ * the point that raised a flag; returns the index past the last point
+ * decoded. */
+static size_t pw_chunk_v2(const pw_v2 *v, laz_dec *dp, size_t i, size_t count, uint8_t *out)
+{
+    laz_dec d = *dp;
     for (; i < count && !*d.fail; i++) {
-        uint8_t *rec = out + i * rl;
-        p10_read_v2(p10, &d, rec);
-        if (gps)
-            gps_read_v2(gps, &d, rec + 20);
-        if (rgb)
-            rgb_read_v2(rgb, &d, rec + at_rgb);
+        uint8_t *rec = out + i * v->rl;
+        p10_read_v2(v->p10, &d, rec);
+        pw_v2_tail(v, &d, rec);
     }
     *dp = d;
     return i;
 }
 
-int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, size_t count,
-                     uint8_t *out, size_t *consumed, laz_chunk_status *st)
+/* Points 1..count-1 of two formats 0-3 chunks at once, a and b alternating
+ * field by field: the two streams are independent dependency chains, which
+ * the core overlaps, where one chunk alone waits on every symbol. Each
+ * chunk stops where it would alone: the rest of the longer one, and of
+ * one whose partner raised a flag, goes on alone. i[]: as pw_chunk_v2's
+ * return. */
+static void pw_chunk2_v2(const pw_v2 *va, const pw_v2 *vb, laz_dec *dpa, laz_dec *dpb,
+                         const size_t count[2], uint8_t *out[2], size_t i[2])
 {
-    st->fail = 0;
-    st->point = 0;
-    st->at = 0;
-    *consumed = 0;
-    if (count == 0)
-        return 0;
-    if (dec->layered)
-        return laz_layered_chunk(dec->ly, p, end, count, out, dec->record_length, consumed,
-                                 st);
+    laz_dec a = *dpa, b = *dpb;
+    size_t n = count[0] < count[1] ? count[0] : count[1], j = 1;
+    for (; j < n && !*a.fail && !*b.fail; j++) {
+        uint8_t *ra = out[0] + j * va->rl, *rb = out[1] + j * vb->rl;
+        p10_ctx ca = p10_head_v2(va->p10, &a);
+        p10_ctx cb = p10_head_v2(vb->p10, &b);
+        p10_x_v2(va->p10, &a, ca);
+        p10_x_v2(vb->p10, &b, cb);
+        p10_y_v2(va->p10, &a, ca);
+        p10_y_v2(vb->p10, &b, cb);
+        p10_z_v2(va->p10, &a, ca, ra);
+        p10_z_v2(vb->p10, &b, cb, rb);
+        pw_v2_tail(va, &a, ra);
+        pw_v2_tail(vb, &b, rb);
+    }
+    i[0] = *a.fail ? j : pw_chunk_v2(va, &a, j, count[0], out[0]);
+    i[1] = *b.fail ? j : pw_chunk_v2(vb, &b, j, count[1], out[1]);
+    *dpa = a;
+    *dpb = b;
+}
+
+/* The start of a pointwise chunk: its first point raw into out, the items
+ * reset from it, the decoder on the bytes after it. 0: points 1..count-1
+ * remain; 1: the chunk is done (*consumed and st set). */
+static int pw_begin(laz_decoder *dec, const uint8_t *p, const uint8_t *end, size_t count,
+                    uint8_t *out, size_t *consumed, laz_chunk_status *st, laz_dec *d)
+{
     size_t rl = dec->record_length;
     if ((size_t)(end - p) < rl) {
         st->fail = LAZ_FAIL_DATA;
         st->at = (size_t)(end - p);
-        return st->fail;
+        return 1;
     }
-    /* The first point raw, then the items start from it. */
     memcpy(out, p, rl);
     const uint8_t *raw = p;
     for (unsigned i = 0; i < dec->n_items; i++) {
@@ -852,20 +920,79 @@ int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, siz
     }
     if (count == 1) {
         *consumed = rl;
-        return 0;
+        return 1;
     }
-    laz_dec d;
-    laz_dec_init(&d, p + rl, end, &st->fail);
-    size_t i = 1;
-    if (dec->v2_p10)
-        i = pw_chunk_v2(dec, &d, count, out);
-    else
-        for (; i < count && !st->fail; i++)
-            pw_read_point(dec, &d, out + i * rl);
-    *consumed = (size_t)(d.p - p);
+    laz_dec_init(d, p + rl, end, &st->fail);
+    return 0;
+}
+
+/* The end of a pointwise chunk whose points up to i-1 were decoded. */
+static int pw_end(const laz_dec *d, const uint8_t *p, size_t i, size_t *consumed,
+                  laz_chunk_status *st)
+{
+    *consumed = (size_t)(d->p - p);
     if (st->fail) {
         st->point = i - 1; /* the point whose decoding raised the flag */
         st->at = *consumed;
     }
     return st->fail;
+}
+
+static void status_clear(size_t *consumed, laz_chunk_status *st)
+{
+    st->fail = 0;
+    st->point = 0;
+    st->at = 0;
+    *consumed = 0;
+}
+
+int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, size_t count,
+                     uint8_t *out, size_t *consumed, laz_chunk_status *st)
+{
+    status_clear(consumed, st);
+    if (count == 0)
+        return 0;
+    if (dec->layered)
+        return laz_layered_chunk(dec->ly, p, end, count, out, dec->record_length, consumed,
+                                 st);
+    laz_dec d;
+    if (pw_begin(dec, p, end, count, out, consumed, st, &d))
+        return st->fail;
+    size_t i = 1;
+    if (dec->v2_p10) {
+        pw_v2 v = pw_v2_items(dec);
+        i = pw_chunk_v2(&v, &d, 1, count, out);
+    } else {
+        for (; i < count && !st->fail; i++)
+            pw_read_point(dec, &d, out + i * dec->record_length);
+    }
+    return pw_end(&d, p, i, consumed, st);
+}
+
+void laz_decode_chunk2(laz_decoder *dec[2], const uint8_t *p[2], const uint8_t *end[2],
+                       const size_t count[2], uint8_t *out[2], size_t consumed[2],
+                       laz_chunk_status st[2])
+{
+    if (dec[0]->layered || !dec[0]->v2_p10 || count[0] < 2 || count[1] < 2) {
+        for (int k = 0; k < 2; k++)
+            laz_decode_chunk(dec[k], p[k], end[k], count[k], out[k], &consumed[k], &st[k]);
+        return;
+    }
+    laz_dec d[2];
+    int done[2];
+    for (int k = 0; k < 2; k++) {
+        status_clear(&consumed[k], &st[k]);
+        done[k] = pw_begin(dec[k], p[k], end[k], count[k], out[k], &consumed[k], &st[k], &d[k]);
+    }
+    pw_v2 v[2] = {pw_v2_items(dec[0]), pw_v2_items(dec[1])};
+    size_t i[2] = {1, 1};
+    if (!done[0] && !done[1])
+        pw_chunk2_v2(&v[0], &v[1], &d[0], &d[1], count, out, i);
+    else
+        for (int k = 0; k < 2; k++)
+            if (!done[k])
+                i[k] = pw_chunk_v2(&v[k], &d[k], 1, count[k], out[k]);
+    for (int k = 0; k < 2; k++)
+        if (!done[k])
+            pw_end(&d[k], p[k], i[k], &consumed[k], &st[k]);
 }
