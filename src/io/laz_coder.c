@@ -106,6 +106,29 @@ void laz_model_update(laz_model *m)
     m->until_update = m->update_cycle;
 }
 
+uint32_t laz_bisect(const uint32_t *dist, uint32_t sym, uint32_t n, uint32_t dv)
+{
+    while (n > sym + 1) {
+        uint32_t k = (sym + n) >> 1;
+        if (dist[k] > dv)
+            n = k;
+        else
+            sym = k;
+    }
+    return sym;
+}
+
+laz_model *laz_model_first_use(laz_model *m, uint8_t *ready, uint32_t symbols, int *fail)
+{
+    if (!m->dist && laz_model_alloc(m, symbols) != 0) {
+        *fail |= LAZ_FAIL_NOMEM;
+        return NULL;
+    }
+    laz_model_init(m);
+    *ready = 1;
+    return m;
+}
+
 void laz_bitmodel_init(laz_bitmodel *m)
 {
     m->bit_0_count = 1;

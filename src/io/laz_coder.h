@@ -100,6 +100,15 @@ void laz_dec_init(laz_dec *d, const uint8_t *p, const uint8_t *end, int *fail);
 
 /* ---- the decoder (inline: the item decoders call these per field) ---- */
 
+/* The last of the bounds dist[sym..n-1] at or below dv (dist[sym] is): the
+ * rare wide bin of a decoder table, out of line to keep the inlined symbol
+ * decoder short. */
+uint32_t laz_bisect(const uint32_t *dist, uint32_t sym, uint32_t n, uint32_t dv);
+
+/* laz_lazy_model's first use in a chunk: m allocated if need be and reset;
+ * NULL and LAZ_FAIL_NOMEM in *fail when it cannot be. */
+laz_model *laz_model_first_use(laz_model *m, uint8_t *ready, uint32_t symbols, int *fail);
+
 LAZ_INLINE uint32_t laz_byte(laz_dec *d)
 {
     if (d->p < d->end)
@@ -190,17 +199,13 @@ LAZ_INLINE uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
             sym += (q[1] <= dv) + (q[2] <= dv) + (q[3] <= dv) + (q[4] <= dv) +
                    (q[5] <= dv) + (q[6] <= dv) + (q[7] <= dv);
         } else {
-            while (n > sym + 1) { /* bisection between the table's bounds */
-                uint32_t k = (sym + n) >> 1;
-                if (dist[k] > dv)
-                    n = k;
-                else
-                    sym = k;
-            }
+            sym = laz_bisect(dist, sym, n, dv);
         }
+        /* the next bound (a pad entry after the last symbol), selected:
+         * whether the symbol is the last is data, not worth a branch */
         x = dist[sym] * d->length;
-        if (sym != m->last_symbol)
-            y = m->dist[sym + 1] * d->length;
+        uint32_t next = dist[sym + 1] * d->length;
+        y = sym != m->last_symbol ? next : y;
     } else {
         x = sym = 0;
         uint32_t n = m->symbols;
@@ -266,15 +271,7 @@ LAZ_INLINE uint64_t laz_read_int64(laz_dec *d)
 LAZ_INLINE laz_model *laz_lazy_model(laz_dec *d, laz_model *m, uint8_t *ready,
                                         uint32_t symbols)
 {
-    if (!*ready) {
-        if (!m->dist && laz_model_alloc(m, symbols) != 0) {
-            *d->fail |= LAZ_FAIL_NOMEM;
-            return NULL;
-        }
-        laz_model_init(m);
-        *ready = 1;
-    }
-    return m;
+    return *ready ? m : laz_model_first_use(m, ready, symbols, d->fail);
 }
 
 /* Two's complement of a 32-bit pattern, without relying on the conversion
@@ -284,9 +281,10 @@ static inline int32_t laz_i32(uint32_t u)
     return u <= 0x7FFFFFFFu ? (int32_t)u : -(int32_t)(~u) - 1;
 }
 
-LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
+/* The corrector once its bit length k (a symbol of ic->mbits[context]) is
+ * decoded. */
+LAZ_INLINE int32_t laz_ic_corrector_k(laz_ic *ic, laz_dec *d, uint32_t k)
 {
-    uint32_t k = laz_decode_symbol(d, &ic->mbits[context]);
     ic->k = k;
     if (k == 0)
         return (int32_t)laz_decode_bit(d, &ic->corr0);
@@ -307,17 +305,41 @@ LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
     return laz_i32(c + adj);
 }
 
+LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
+{
+    return laz_ic_corrector_k(ic, d, laz_decode_symbol(d, &ic->mbits[context]));
+}
+
+/* The value of prediction pred plus corrector corr, folded into range. */
+LAZ_INLINE int32_t laz_ic_value(const laz_ic *ic, int32_t pred, int32_t corr)
+{
+    uint32_t real = (uint32_t)pred + (uint32_t)corr, range = ic->corr_range;
+    /* selects: the sign of a value is data (a range of 0 changes nothing) */
+    uint32_t up = real + range, down = real >= range ? real - range : real;
+    return laz_i32(laz_i32(real) < 0 ? up : down);
+}
+
 /* The value predicted by pred, in [0, 2^bits) for bits < 32 (callers cast),
  * any int32 for 32 bits. Sums wrap as the reference's do. */
 LAZ_INLINE int32_t laz_ic_decompress(laz_ic *ic, laz_dec *d, int32_t pred,
                                         uint32_t context)
 {
-    uint32_t real = (uint32_t)pred + (uint32_t)laz_ic_corrector(ic, d, context);
-    if (laz_i32(real) < 0)
-        real += ic->corr_range;
-    else if (real >= ic->corr_range && ic->corr_range)
-        real -= ic->corr_range;
-    return laz_i32(real);
+    return laz_ic_value(ic, pred, laz_ic_corrector(ic, d, context));
+}
+
+/* Two values from two independent streams (a with ic[0] and d[0], b with
+ * ic[1] and d[1]) in lockstep: both bit lengths, then both correctors, so
+ * that the core decodes the two symbol chains at once and a mispredicted
+ * branch on the one stream's k (resolved when its symbol is) does not hold
+ * back the other's symbol. */
+LAZ_INLINE void laz_ic_decompress2(laz_ic *ia, laz_dec *da, int32_t pa, uint32_t ca,
+                                   laz_ic *ib, laz_dec *db, int32_t pb, uint32_t cb,
+                                   int32_t out[2])
+{
+    uint32_t ka = laz_decode_symbol(da, &ia->mbits[ca]);
+    uint32_t kb = laz_decode_symbol(db, &ib->mbits[cb]);
+    out[0] = laz_ic_value(ia, pa, laz_ic_corrector_k(ia, da, ka));
+    out[1] = laz_ic_value(ib, pb, laz_ic_corrector_k(ib, db, kb));
 }
 
 /* LASzip's five-value streaming median of coordinate differences. */

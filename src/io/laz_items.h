@@ -74,47 +74,48 @@ void laz_decode_chunk2(laz_decoder *dec[2], const uint8_t *p[2], const uint8_t *
                        laz_chunk_status st[2]);
 
 /* RGB12 v2 and RGB14: the colour c from the last one (byte_used: 128
- * symbols, diff: six models of 256). Here and below, inline: the callers in
- * both item files keep their decoder in registers through them. */
-LAZ_INLINE void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff_model[6],
-                               const uint16_t last[3], uint16_t c[3])
+ * symbols, diff: six models of 256), in two steps so that two chunks can
+ * alternate symbol by symbol: which bytes changed (laz_rgb_used), then the
+ * changed bytes' symbols in the reference's order (laz_rgb_byte for
+ * j = 0..5), then the colour from them (laz_rgb_combine). Here and below,
+ * inline: the callers in both item files keep their decoder in registers
+ * through them. */
+static const uint8_t laz_rgb_order[6] = {0, 1, 2, 4, 3, 5};
+
+/* The j-th changed-byte symbol of colour code sym into corr (0: unchanged;
+ * green and blue only when the code says they differ from red). */
+LAZ_INLINE void laz_rgb_byte(laz_dec *d, laz_model diff_model[6], uint32_t sym, int j,
+                             uint32_t corr[6])
 {
-    uint32_t sym = laz_decode_symbol(d, byte_used);
+    uint32_t b = laz_rgb_order[j];
+    corr[b] = (sym & (1u << b)) && (b < 2 || (sym & 64))
+                  ? laz_decode_symbol(d, &diff_model[b])
+                  : 0;
+}
+
+LAZ_INLINE void laz_rgb_combine(uint32_t sym, const uint32_t corr[6], const uint16_t last[3],
+                                uint16_t c[3])
+{
     uint32_t r, g, b;
-    if (sym & 1)
-        r = (laz_decode_symbol(d, &diff_model[0]) + (last[0] & 0xFF)) & 0xFF;
-    else
-        r = last[0] & 0xFF;
-    if (sym & 2)
-        r |= ((laz_decode_symbol(d, &diff_model[1]) + (last[0] >> 8)) & 0xFF) << 8;
-    else
-        r |= last[0] & 0xFF00;
+    r = ((corr[0] + (last[0] & 0xFF)) & 0xFF) | (((corr[1] + (last[0] >> 8)) & 0xFF) << 8);
     if (sym & 64) {
         int32_t diff = (int32_t)(r & 0xFF) - (int32_t)(last[0] & 0xFF);
-        if (sym & 4)
-            g = (laz_decode_symbol(d, &diff_model[2]) +
-                 laz_clamp8(diff + (int32_t)(last[1] & 0xFF))) & 0xFF;
-        else
-            g = last[1] & 0xFF;
+        g = sym & 4 ? (corr[2] + laz_clamp8(diff + (int32_t)(last[1] & 0xFF))) & 0xFF
+                    : last[1] & 0xFFu;
         if (sym & 16) {
-            uint32_t corr = laz_decode_symbol(d, &diff_model[4]);
-            diff = (diff + ((int32_t)(g & 0xFF) - (int32_t)(last[1] & 0xFF))) / 2;
-            b = (corr + laz_clamp8(diff + (int32_t)(last[2] & 0xFF))) & 0xFF;
+            int32_t d2 = (diff + ((int32_t)(g & 0xFF) - (int32_t)(last[1] & 0xFF))) / 2;
+            b = (corr[4] + laz_clamp8(d2 + (int32_t)(last[2] & 0xFF))) & 0xFF;
         } else {
-            b = last[2] & 0xFF;
+            b = last[2] & 0xFFu;
         }
         diff = (int32_t)(r >> 8) - (int32_t)(last[0] >> 8);
-        if (sym & 8)
-            g |= ((laz_decode_symbol(d, &diff_model[3]) +
-                   laz_clamp8(diff + (int32_t)(last[1] >> 8))) & 0xFF) << 8;
-        else
-            g |= last[1] & 0xFF00;
+        g |= sym & 8 ? ((corr[3] + laz_clamp8(diff + (int32_t)(last[1] >> 8))) & 0xFF) << 8
+                     : last[1] & 0xFF00u;
         if (sym & 32) {
-            uint32_t corr = laz_decode_symbol(d, &diff_model[5]);
-            diff = (diff + ((int32_t)(g >> 8) - (int32_t)(last[1] >> 8))) / 2;
-            b |= ((corr + laz_clamp8(diff + (int32_t)(last[2] >> 8))) & 0xFF) << 8;
+            int32_t d2 = (diff + ((int32_t)(g >> 8) - (int32_t)(last[1] >> 8))) / 2;
+            b |= ((corr[5] + laz_clamp8(d2 + (int32_t)(last[2] >> 8))) & 0xFF) << 8;
         } else {
-            b |= last[2] & 0xFF00;
+            b |= last[2] & 0xFF00u;
         }
     } else {
         g = b = r;
@@ -122,6 +123,15 @@ LAZ_INLINE void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff_
     c[0] = (uint16_t)r;
     c[1] = (uint16_t)g;
     c[2] = (uint16_t)b;
+}
+
+LAZ_INLINE void laz_rgb_decode(laz_dec *d, laz_model *byte_used, laz_model diff_model[6],
+                               const uint16_t last[3], uint16_t c[3])
+{
+    uint32_t sym = laz_decode_symbol(d, byte_used), corr[6];
+    for (int j = 0; j < 6; j++)
+        laz_rgb_byte(d, diff_model, sym, j, corr);
+    laz_rgb_combine(sym, corr, last, c);
 }
 
 /* GPS time difference of GPSTIME11 v2 and POINT14, for the codes 0 and

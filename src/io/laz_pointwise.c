@@ -283,12 +283,12 @@ typedef struct p10_ctx {
     uint32_t n, m, l;
 } p10_ctx;
 
-/* POINT10 v2 is decoded in four steps (the changed fields, then X, Y and Z)
- * so that two chunks decoded together can alternate between them. */
-LAZ_INLINE p10_ctx p10_head_v2(p10_state *s, laz_dec *d)
+/* POINT10 v2 comes in steps, each a symbol or an integer then what follows
+ * from it, so that two chunks decoded together can go step by step: the
+ * "changed" symbol, the fields it names, then X, Y and Z. */
+LAZ_INLINE p10_ctx p10_fields_v2(p10_state *s, laz_dec *d, uint32_t changed)
 {
     p10_point *p = &s->last;
-    uint32_t changed = laz_decode_symbol(d, &s->changed);
     p10_ctx c;
     if (changed) {
         if (changed & 32)
@@ -321,37 +321,75 @@ LAZ_INLINE p10_ctx p10_head_v2(p10_state *s, laz_dec *d)
     return c;
 }
 
-LAZ_INLINE void p10_x_v2(p10_state *s, laz_dec *d, p10_ctx c)
+/* The prediction and context of X, Y and Z, then the decoded value's use. */
+static inline int32_t p10_x_pred(const p10_state *s, p10_ctx c) { return s->xdiff[c.m].v[2]; }
+static inline uint32_t p10_x_ctx(p10_ctx c) { return c.n == 1; }
+
+static inline void p10_x_set(p10_state *s, p10_ctx c, int32_t diff)
 {
-    int32_t diff = laz_ic_decompress(&s->ic_dx, d, s->xdiff[c.m].v[2], c.n == 1);
     s->last.x += (uint32_t)diff;
     laz_median5_add(&s->xdiff[c.m], diff);
 }
 
-LAZ_INLINE void p10_y_v2(p10_state *s, laz_dec *d, p10_ctx c)
+static inline int32_t p10_y_pred(const p10_state *s, p10_ctx c) { return s->ydiff[c.m].v[2]; }
+
+static inline uint32_t p10_y_ctx(const p10_state *s, p10_ctx c)
 {
     uint32_t k = s->ic_dx.k;
-    int32_t diff = laz_ic_decompress(&s->ic_dy, d, s->ydiff[c.m].v[2],
-                                     (c.n == 1) + (k < 20 ? (k & ~1u) : 20));
+    return (c.n == 1) + (k < 20 ? (k & ~1u) : 20);
+}
+
+static inline void p10_y_set(p10_state *s, p10_ctx c, int32_t diff)
+{
     s->last.y += (uint32_t)diff;
     laz_median5_add(&s->ydiff[c.m], diff);
 }
 
-LAZ_INLINE void p10_z_v2(p10_state *s, laz_dec *d, p10_ctx c, uint8_t *out)
+static inline int32_t p10_z_pred(const p10_state *s, p10_ctx c) { return s->last_height[c.l]; }
+
+static inline uint32_t p10_z_ctx(const p10_state *s, p10_ctx c)
 {
     uint32_t k = (s->ic_dx.k + s->ic_dy.k) / 2;
-    s->last.z = (uint32_t)laz_ic_decompress(&s->ic_z, d, s->last_height[c.l],
-                                            (c.n == 1) + (k < 18 ? (k & ~1u) : 18));
-    s->last_height[c.l] = laz_i32(s->last.z);
+    return (c.n == 1) + (k < 18 ? (k & ~1u) : 18);
+}
+
+static inline void p10_z_set(p10_state *s, p10_ctx c, int32_t z, uint8_t *out)
+{
+    s->last.z = (uint32_t)z;
+    s->last_height[c.l] = z;
     p10_store(&s->last, out);
 }
 
 LAZ_INLINE void p10_read_v2(p10_state *s, laz_dec *d, uint8_t *out)
 {
-    p10_ctx c = p10_head_v2(s, d);
-    p10_x_v2(s, d, c);
-    p10_y_v2(s, d, c);
-    p10_z_v2(s, d, c, out);
+    p10_ctx c = p10_fields_v2(s, d, laz_decode_symbol(d, &s->changed));
+    p10_x_set(s, c, laz_ic_decompress(&s->ic_dx, d, p10_x_pred(s, c), p10_x_ctx(c)));
+    p10_y_set(s, c, laz_ic_decompress(&s->ic_dy, d, p10_y_pred(s, c), p10_y_ctx(s, c)));
+    p10_z_set(s, c, laz_ic_decompress(&s->ic_z, d, p10_z_pred(s, c), p10_z_ctx(s, c)), out);
+}
+
+/* POINT10 v2 of two chunks (a: sa, da; b: sb, db) in lockstep:
+ * each step of the one, then of the other. */
+LAZ_INLINE void p10_read2_v2(p10_state *sa, laz_dec *da, p10_state *sb, laz_dec *db,
+                             uint8_t *out_a, uint8_t *out_b)
+{
+    uint32_t cha = laz_decode_symbol(da, &sa->changed);
+    uint32_t chb = laz_decode_symbol(db, &sb->changed);
+    p10_ctx ca = p10_fields_v2(sa, da, cha);
+    p10_ctx cb = p10_fields_v2(sb, db, chb);
+    int32_t v[2];
+    laz_ic_decompress2(&sa->ic_dx, da, p10_x_pred(sa, ca), p10_x_ctx(ca), &sb->ic_dx, db,
+                       p10_x_pred(sb, cb), p10_x_ctx(cb), v);
+    p10_x_set(sa, ca, v[0]);
+    p10_x_set(sb, cb, v[1]);
+    laz_ic_decompress2(&sa->ic_dy, da, p10_y_pred(sa, ca), p10_y_ctx(sa, ca), &sb->ic_dy, db,
+                       p10_y_pred(sb, cb), p10_y_ctx(sb, cb), v);
+    p10_y_set(sa, ca, v[0]);
+    p10_y_set(sb, cb, v[1]);
+    laz_ic_decompress2(&sa->ic_z, da, p10_z_pred(sa, ca), p10_z_ctx(sa, ca), &sb->ic_z, db,
+                       p10_z_pred(sb, cb), p10_z_ctx(sb, cb), v);
+    p10_z_set(sa, ca, v[0], out_a);
+    p10_z_set(sb, cb, v[1], out_b);
 }
 
 /* ---- GPSTIME11 ---- */
@@ -452,58 +490,88 @@ static void gps_read_v1(gps_state *s, laz_dec *d, uint8_t *out)
     laz_wr64(out, s->last_gps[0]);
 }
 
+/* The model of the next symbol of a GPSTIME11 v2 point. */
+static inline laz_model *gps_model_v2(gps_state *s)
+{
+    return s->last_diff[s->last] == 0 ? &s->zero_diff : &s->multi;
+}
+
+/* What follows symbol `multi` of gps_model_v2: 1 when the time is decoded,
+ * 0 when the sequence switched (another symbol follows). */
+LAZ_INLINE int gps_round_v2(gps_state *s, laz_dec *d, uint32_t multi)
+{
+    unsigned last = s->last;
+    if (s->last_diff[last] == 0) {
+        if (multi == 1) {
+            s->last_diff[last] = laz_ic_decompress(&s->ic, d, 0, 0);
+            s->last_gps[last] += (uint64_t)(int64_t)s->last_diff[last];
+            s->extreme[last] = 0;
+        } else if (multi == 2) {
+            s->next = (s->next + 1) & 3;
+            uint32_t hi = (uint32_t)laz_ic_decompress(
+                &s->ic, d, laz_i32((uint32_t)(s->last_gps[last] >> 32)), 8);
+            s->last_gps[s->next] = ((uint64_t)hi << 32) | laz_read_int(d);
+            s->last = s->next;
+            s->last_diff[s->last] = 0;
+            s->extreme[s->last] = 0;
+        } else if (multi > 2) {
+            s->last = (last + multi - 2) & 3;
+            return 0;
+        }
+    } else {
+        if (multi == 1) {
+            s->last_gps[last] +=
+                (uint64_t)(int64_t)laz_ic_decompress(&s->ic, d, s->last_diff[last], 1);
+            s->extreme[last] = 0;
+        } else if (multi < GPS_V2_UNCHANGED) {
+            int32_t diff = laz_gps_multi_diff(&s->ic, d, &s->last_diff[last],
+                                              &s->extreme[last], multi);
+            s->last_gps[last] += (uint64_t)(int64_t)diff;
+        } else if (multi == GPS_V2_CODE_FULL) {
+            s->next = (s->next + 1) & 3;
+            uint32_t hi = (uint32_t)laz_ic_decompress(
+                &s->ic, d, laz_i32((uint32_t)(s->last_gps[last] >> 32)), 8);
+            s->last_gps[s->next] = ((uint64_t)hi << 32) | laz_read_int(d);
+            s->last = s->next;
+            s->last_diff[s->last] = 0;
+            s->extreme[s->last] = 0;
+        } else if (multi > GPS_V2_CODE_FULL) {
+            s->last = (last + multi - GPS_V2_CODE_FULL) & 3;
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* A GPSTIME11 v2 point whose first symbol is `multi`. A sequence switch
+ * re-reads; the encoder switches at most once per point, so four symbols
+ * bound a corrupt stream. */
+LAZ_INLINE void gps_finish_v2(gps_state *s, laz_dec *d, uint32_t multi, uint8_t *out)
+{
+    int round = 1;
+    while (!gps_round_v2(s, d, multi)) {
+        if (round++ == 4) {
+            *d->fail |= LAZ_FAIL_CORRUPT;
+            break;
+        }
+        multi = laz_decode_symbol(d, gps_model_v2(s));
+    }
+    laz_wr64(out, s->last_gps[s->last]);
+}
+
 LAZ_INLINE void gps_read_v2(gps_state *s, laz_dec *d, uint8_t *out)
 {
-    /* A sequence switch re-reads; the encoder switches at most once per
-     * point, so a few rounds bound a corrupt stream. */
-    for (int round = 0; round < 4; round++) {
-        unsigned last = s->last;
-        if (s->last_diff[last] == 0) {
-            uint32_t multi = laz_decode_symbol(d, &s->zero_diff);
-            if (multi == 1) {
-                s->last_diff[last] = laz_ic_decompress(&s->ic, d, 0, 0);
-                s->last_gps[last] += (uint64_t)(int64_t)s->last_diff[last];
-                s->extreme[last] = 0;
-            } else if (multi == 2) {
-                s->next = (s->next + 1) & 3;
-                uint32_t hi = (uint32_t)laz_ic_decompress(
-                    &s->ic, d, laz_i32((uint32_t)(s->last_gps[last] >> 32)), 8);
-                s->last_gps[s->next] = ((uint64_t)hi << 32) | laz_read_int(d);
-                s->last = s->next;
-                s->last_diff[s->last] = 0;
-                s->extreme[s->last] = 0;
-            } else if (multi > 2) {
-                s->last = (last + multi - 2) & 3;
-                continue;
-            }
-        } else {
-            uint32_t multi = laz_decode_symbol(d, &s->multi);
-            if (multi == 1) {
-                s->last_gps[last] += (uint64_t)(int64_t)laz_ic_decompress(
-                    &s->ic, d, s->last_diff[last], 1);
-                s->extreme[last] = 0;
-            } else if (multi < GPS_V2_UNCHANGED) {
-                int32_t diff = laz_gps_multi_diff(&s->ic, d, &s->last_diff[last],
-                                              &s->extreme[last], multi);
-                s->last_gps[last] += (uint64_t)(int64_t)diff;
-            } else if (multi == GPS_V2_CODE_FULL) {
-                s->next = (s->next + 1) & 3;
-                uint32_t hi = (uint32_t)laz_ic_decompress(
-                    &s->ic, d, laz_i32((uint32_t)(s->last_gps[last] >> 32)), 8);
-                s->last_gps[s->next] = ((uint64_t)hi << 32) | laz_read_int(d);
-                s->last = s->next;
-                s->last_diff[s->last] = 0;
-                s->extreme[s->last] = 0;
-            } else if (multi > GPS_V2_CODE_FULL) {
-                s->last = (last + multi - GPS_V2_CODE_FULL) & 3;
-                continue;
-            }
-        }
-        laz_wr64(out, s->last_gps[s->last]);
-        return;
-    }
-    *d->fail |= LAZ_FAIL_CORRUPT;
-    laz_wr64(out, s->last_gps[s->last]);
+    gps_finish_v2(s, d, laz_decode_symbol(d, gps_model_v2(s)), out);
+}
+
+/* GPSTIME11 v2 of two chunks: both first symbols, then the rest of each. */
+LAZ_INLINE void gps_read2_v2(gps_state *sa, laz_dec *da, gps_state *sb, laz_dec *db,
+                             uint8_t *out_a, uint8_t *out_b)
+{
+    uint32_t ma = laz_decode_symbol(da, gps_model_v2(sa));
+    uint32_t mb = laz_decode_symbol(db, gps_model_v2(sb));
+    gps_finish_v2(sa, da, ma, out_a);
+    gps_finish_v2(sb, db, mb, out_b);
 }
 
 /* ---- RGB12 ---- */
@@ -569,14 +637,36 @@ static void rgb_read_v1(rgb_state *s, laz_dec *d, uint8_t *out)
     }
 }
 
-LAZ_INLINE void rgb_read_v2(rgb_state *s, laz_dec *d, uint8_t *out)
+static inline void rgb_set_v2(rgb_state *s, uint32_t sym, const uint32_t corr[6], uint8_t *out)
 {
     uint16_t c[3];
-    laz_rgb_decode(d, &s->byte_used, s->diff, s->last, c);
+    laz_rgb_combine(sym, corr, s->last, c);
     for (int i = 0; i < 3; i++) {
         s->last[i] = c[i];
         laz_wr16(out + 2 * i, c[i]);
     }
+}
+
+LAZ_INLINE void rgb_read_v2(rgb_state *s, laz_dec *d, uint8_t *out)
+{
+    uint32_t sym = laz_decode_symbol(d, &s->byte_used), corr[6];
+    for (int j = 0; j < 6; j++)
+        laz_rgb_byte(d, s->diff, sym, j, corr);
+    rgb_set_v2(s, sym, corr, out);
+}
+
+/* RGB12 v2 of two chunks in lockstep, symbol by symbol. */
+LAZ_INLINE void rgb_read2_v2(rgb_state *sa, laz_dec *da, rgb_state *sb, laz_dec *db,
+                             uint8_t *out_a, uint8_t *out_b)
+{
+    uint32_t syma = laz_decode_symbol(da, &sa->byte_used), ca[6];
+    uint32_t symb = laz_decode_symbol(db, &sb->byte_used), cb[6];
+    for (int j = 0; j < 6; j++) {
+        laz_rgb_byte(da, sa->diff, syma, j, ca);
+        laz_rgb_byte(db, sb->diff, symb, j, cb);
+    }
+    rgb_set_v2(sa, syma, ca, out_a);
+    rgb_set_v2(sb, symb, cb, out_b);
 }
 
 /* ---- BYTE ---- */
@@ -846,6 +936,16 @@ LAZ_INLINE void pw_v2_tail(const pw_v2 *v, laz_dec *d, uint8_t *rec)
         rgb_read_v2(v->rgb, d, rec + v->at_rgb);
 }
 
+/* The same for two chunks in lockstep (both have the same items). */
+LAZ_INLINE void pw_v2_tail2(const pw_v2 *va, laz_dec *da, const pw_v2 *vb, laz_dec *db,
+                            uint8_t *ra, uint8_t *rb)
+{
+    if (va->gps)
+        gps_read2_v2(va->gps, da, vb->gps, db, ra + 20, rb + 20);
+    if (va->rgb)
+        rgb_read2_v2(va->rgb, da, vb->rgb, db, ra + va->at_rgb, rb + vb->at_rgb);
+}
+
 /* Points i..count-1 of a formats 0-3 chunk: every item inlined, so the
  * arithmetic decoder stays in registers from point to point. Stops after
  * the point that raised a flag; returns the index past the last point
@@ -875,16 +975,8 @@ static void pw_chunk2_v2(const pw_v2 *va, const pw_v2 *vb, laz_dec *dpa, laz_dec
     size_t n = count[0] < count[1] ? count[0] : count[1], j = 1;
     for (; j < n && !*a.fail && !*b.fail; j++) {
         uint8_t *ra = out[0] + j * va->rl, *rb = out[1] + j * vb->rl;
-        p10_ctx ca = p10_head_v2(va->p10, &a);
-        p10_ctx cb = p10_head_v2(vb->p10, &b);
-        p10_x_v2(va->p10, &a, ca);
-        p10_x_v2(vb->p10, &b, cb);
-        p10_y_v2(va->p10, &a, ca);
-        p10_y_v2(vb->p10, &b, cb);
-        p10_z_v2(va->p10, &a, ca, ra);
-        p10_z_v2(vb->p10, &b, cb, rb);
-        pw_v2_tail(va, &a, ra);
-        pw_v2_tail(vb, &b, rb);
+        p10_read2_v2(va->p10, &a, vb->p10, &b, ra, rb);
+        pw_v2_tail2(va, &a, vb, &b, ra, rb);
     }
     i[0] = *a.fail ? j : pw_chunk_v2(va, &a, j, count[0], out[0]);
     i[1] = *b.fail ? j : pw_chunk_v2(vb, &b, j, count[1], out[1]);
