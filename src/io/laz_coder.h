@@ -282,19 +282,29 @@ static inline int32_t laz_i32(uint32_t u)
 }
 
 /* The corrector once its bit length k (a symbol of ic->mbits[context]) is
- * decoded. */
-LAZ_INLINE int32_t laz_ic_corrector_k(laz_ic *ic, laz_dec *d, uint32_t k)
+ * decoded, in two steps: the symbol that k selects (laz_ic_high: a bit for
+ * k = 0, the high bits for k < 32), then the low bits and the sign
+ * (laz_ic_low). */
+LAZ_INLINE uint32_t laz_ic_high(laz_ic *ic, laz_dec *d, uint32_t k)
 {
     ic->k = k;
     if (k == 0)
-        return (int32_t)laz_decode_bit(d, &ic->corr0);
+        return laz_decode_bit(d, &ic->corr0);
     if (k >= 32)
-        return ic->corr_min;
+        return 0;
     laz_model *m = laz_lazy_model(d, &ic->corr[k - 1], &ic->corr_ready[k - 1],
                                   1u << (k <= ic->bits_high ? k : ic->bits_high));
-    if (!m)
-        return 0;
-    uint32_t c = laz_decode_symbol(d, m);
+    return m ? laz_decode_symbol(d, m) : 0;
+}
+
+LAZ_INLINE int32_t laz_ic_low(laz_ic *ic, laz_dec *d, uint32_t k, uint32_t c)
+{
+    if (k == 0)
+        return (int32_t)c;
+    if (k >= 32)
+        return ic->corr_min;
+    if (!ic->corr_ready[k - 1])
+        return 0; /* its model could not be made (LAZ_FAIL_NOMEM) */
     if (k > ic->bits_high) {
         uint32_t k1 = k - ic->bits_high;
         c = (c << k1) | laz_read_bits(d, k1);
@@ -303,6 +313,11 @@ LAZ_INLINE int32_t laz_ic_corrector_k(laz_ic *ic, laz_dec *d, uint32_t k)
      * not a branch: the sign is a coin toss) */
     uint32_t adj = c >= (1u << (k - 1)) ? 1u : 1u - (1u << k);
     return laz_i32(c + adj);
+}
+
+LAZ_INLINE int32_t laz_ic_corrector_k(laz_ic *ic, laz_dec *d, uint32_t k)
+{
+    return laz_ic_low(ic, d, k, laz_ic_high(ic, d, k));
 }
 
 LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
@@ -327,8 +342,8 @@ LAZ_INLINE int32_t laz_ic_decompress(laz_ic *ic, laz_dec *d, int32_t pred,
     return laz_ic_value(ic, pred, laz_ic_corrector(ic, d, context));
 }
 
-/* Two values from two independent streams (a with ic[0] and d[0], b with
- * ic[1] and d[1]) in lockstep: both bit lengths, then both correctors, so
+/* Two values from two independent streams (a: ia, da; b: ib, db) in
+ * lockstep: both bit lengths, both high parts, then both low parts, so
  * that the core decodes the two symbol chains at once and a mispredicted
  * branch on the one stream's k (resolved when its symbol is) does not hold
  * back the other's symbol. */
@@ -338,8 +353,10 @@ LAZ_INLINE void laz_ic_decompress2(laz_ic *ia, laz_dec *da, int32_t pa, uint32_t
 {
     uint32_t ka = laz_decode_symbol(da, &ia->mbits[ca]);
     uint32_t kb = laz_decode_symbol(db, &ib->mbits[cb]);
-    out[0] = laz_ic_value(ia, pa, laz_ic_corrector_k(ia, da, ka));
-    out[1] = laz_ic_value(ib, pb, laz_ic_corrector_k(ib, db, kb));
+    uint32_t ha = laz_ic_high(ia, da, ka);
+    uint32_t hb = laz_ic_high(ib, db, kb);
+    out[0] = laz_ic_value(ia, pa, laz_ic_low(ia, da, ka, ha));
+    out[1] = laz_ic_value(ib, pb, laz_ic_low(ib, db, kb, hb));
 }
 
 /* LASzip's five-value streaming median of coordinate differences. */

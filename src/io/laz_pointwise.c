@@ -285,17 +285,30 @@ typedef struct p10_ctx {
 
 /* POINT10 v2 comes in steps, each a symbol or an integer then what follows
  * from it, so that two chunks decoded together can go step by step: the
- * "changed" symbol, the fields it names, then X, Y and Z. */
-LAZ_INLINE p10_ctx p10_fields_v2(p10_state *s, laz_dec *d, uint32_t changed)
+ * "changed" symbol, the return byte, the other fields it names, then X, Y
+ * and Z. */
+LAZ_INLINE void p10_bits_v2(p10_state *s, laz_dec *d, uint32_t changed)
+{
+    if (changed & 32)
+        s->last.bits = p10_byte(d, s->bit_byte, s->bit_byte_ready, s->last.bits);
+}
+
+static inline p10_ctx p10_ctx_v2(const p10_state *s)
+{
+    uint32_t r = s->last.bits & 7, n = (s->last.bits >> 3) & 7;
+    p10_ctx c = {n, p10_return_map[n][r], p10_return_level[n][r]};
+    return c;
+}
+
+/* Field j (0 intensity, 1 classification, 2 scan angle, 3 user data, 4
+ * point source) as `changed` says. The intensity of an unchanged point is
+ * its context's last one: always the last point's, unless the returns
+ * changed. */
+LAZ_INLINE void p10_field_v2(p10_state *s, laz_dec *d, uint32_t changed, p10_ctx c, int j)
 {
     p10_point *p = &s->last;
-    p10_ctx c;
-    if (changed) {
-        if (changed & 32)
-            p->bits = p10_byte(d, s->bit_byte, s->bit_byte_ready, p->bits);
-        c.n = (p->bits >> 3) & 7;
-        c.m = p10_return_map[c.n][p->bits & 7];
-        c.l = p10_return_level[c.n][p->bits & 7];
+    switch (j) {
+    case 0:
         if (changed & 16) {
             p->intensity = (uint16_t)laz_ic_decompress(
                 &s->ic_intensity, d, s->last_intensity[c.m], c.m < 3 ? c.m : 3);
@@ -303,22 +316,25 @@ LAZ_INLINE p10_ctx p10_fields_v2(p10_state *s, laz_dec *d, uint32_t changed)
         } else {
             p->intensity = s->last_intensity[c.m];
         }
+        break;
+    case 1:
         if (changed & 8)
             p->cls = p10_byte(d, s->cls_model, s->cls_ready, p->cls);
-        if (changed & 4) {
-            uint32_t v = laz_decode_symbol(d, &s->scan_angle[(p->bits >> 6) & 1]);
-            p->sar = (uint8_t)(v + p->sar);
-        }
+        break;
+    case 2:
+        if (changed & 4)
+            p->sar = (uint8_t)(laz_decode_symbol(d, &s->scan_angle[(p->bits >> 6) & 1]) +
+                               p->sar);
+        break;
+    case 3:
         if (changed & 2)
             p->ud = p10_byte(d, s->ud_model, s->ud_ready, p->ud);
+        break;
+    default:
         if (changed & 1)
             p->psid = (uint16_t)laz_ic_decompress(&s->ic_psid, d, p->psid, 0);
-    } else {
-        c.n = (p->bits >> 3) & 7;
-        c.m = p10_return_map[c.n][p->bits & 7];
-        c.l = p10_return_level[c.n][p->bits & 7];
+        break;
     }
-    return c;
 }
 
 /* The prediction and context of X, Y and Z, then the decoded value's use. */
@@ -362,7 +378,11 @@ static inline void p10_z_set(p10_state *s, p10_ctx c, int32_t z, uint8_t *out)
 
 LAZ_INLINE void p10_read_v2(p10_state *s, laz_dec *d, uint8_t *out)
 {
-    p10_ctx c = p10_fields_v2(s, d, laz_decode_symbol(d, &s->changed));
+    uint32_t changed = laz_decode_symbol(d, &s->changed);
+    p10_bits_v2(s, d, changed);
+    p10_ctx c = p10_ctx_v2(s);
+    for (int j = 0; j < 5; j++)
+        p10_field_v2(s, d, changed, c, j);
     p10_x_set(s, c, laz_ic_decompress(&s->ic_dx, d, p10_x_pred(s, c), p10_x_ctx(c)));
     p10_y_set(s, c, laz_ic_decompress(&s->ic_dy, d, p10_y_pred(s, c), p10_y_ctx(s, c)));
     p10_z_set(s, c, laz_ic_decompress(&s->ic_z, d, p10_z_pred(s, c), p10_z_ctx(s, c)), out);
@@ -375,8 +395,13 @@ LAZ_INLINE void p10_read2_v2(p10_state *sa, laz_dec *da, p10_state *sb, laz_dec 
 {
     uint32_t cha = laz_decode_symbol(da, &sa->changed);
     uint32_t chb = laz_decode_symbol(db, &sb->changed);
-    p10_ctx ca = p10_fields_v2(sa, da, cha);
-    p10_ctx cb = p10_fields_v2(sb, db, chb);
+    p10_bits_v2(sa, da, cha);
+    p10_bits_v2(sb, db, chb);
+    p10_ctx ca = p10_ctx_v2(sa), cb = p10_ctx_v2(sb);
+    for (int j = 0; j < 5; j++) {
+        p10_field_v2(sa, da, cha, ca, j);
+        p10_field_v2(sb, db, chb, cb, j);
+    }
     int32_t v[2];
     laz_ic_decompress2(&sa->ic_dx, da, p10_x_pred(sa, ca), p10_x_ctx(ca), &sb->ic_dx, db,
                        p10_x_pred(sb, cb), p10_x_ctx(cb), v);
