@@ -201,11 +201,9 @@ LAZ_INLINE uint32_t laz_decode_symbol(laz_dec *d, laz_model *m)
         } else {
             sym = laz_bisect(dist, sym, n, dv);
         }
-        /* the next bound (a pad entry after the last symbol), selected:
-         * whether the symbol is the last is data, not worth a branch */
         x = dist[sym] * d->length;
-        uint32_t next = dist[sym + 1] * d->length;
-        y = sym != m->last_symbol ? next : y;
+        if (sym != m->last_symbol)
+            y = m->dist[sym + 1] * d->length;
     } else {
         x = sym = 0;
         uint32_t n = m->symbols;
@@ -294,7 +292,7 @@ LAZ_INLINE uint32_t laz_ic_high(laz_ic *ic, laz_dec *d, uint32_t k)
         return 0;
     laz_model *m = laz_lazy_model(d, &ic->corr[k - 1], &ic->corr_ready[k - 1],
                                   1u << (k <= ic->bits_high ? k : ic->bits_high));
-    return m ? laz_decode_symbol(d, m) : 0;
+    return m ? laz_decode_symbol(d, m) : 0; /* no model: the chunk fails (NOMEM) */
 }
 
 LAZ_INLINE int32_t laz_ic_low(laz_ic *ic, laz_dec *d, uint32_t k, uint32_t c)
@@ -303,8 +301,6 @@ LAZ_INLINE int32_t laz_ic_low(laz_ic *ic, laz_dec *d, uint32_t k, uint32_t c)
         return (int32_t)c;
     if (k >= 32)
         return ic->corr_min;
-    if (!ic->corr_ready[k - 1])
-        return 0; /* its model could not be made (LAZ_FAIL_NOMEM) */
     if (k > ic->bits_high) {
         uint32_t k1 = k - ic->bits_high;
         c = (c << k1) | laz_read_bits(d, k1);
@@ -328,10 +324,12 @@ LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
 /* The value of prediction pred plus corrector corr, folded into range. */
 LAZ_INLINE int32_t laz_ic_value(const laz_ic *ic, int32_t pred, int32_t corr)
 {
-    uint32_t real = (uint32_t)pred + (uint32_t)corr, range = ic->corr_range;
-    /* selects: the sign of a value is data (a range of 0 changes nothing) */
-    uint32_t up = real + range, down = real >= range ? real - range : real;
-    return laz_i32(laz_i32(real) < 0 ? up : down);
+    uint32_t real = (uint32_t)pred + (uint32_t)corr;
+    if (laz_i32(real) < 0)
+        real += ic->corr_range;
+    else if (real >= ic->corr_range && ic->corr_range)
+        real -= ic->corr_range;
+    return laz_i32(real);
 }
 
 /* The value predicted by pred, in [0, 2^bits) for bits < 32 (callers cast),
