@@ -519,6 +519,48 @@ static void test_prefixes(void)
     }
 }
 
+/* Corrupt chunk bytes of the chunked file `base` (point data at po): an
+ * error or points, never a crash or a hang; the same outcome on one and two
+ * threads. */
+static void corrupt_trials(const uint8_t *base, size_t zs, uint64_t po, const char *what)
+{
+    uint64_t table = 0;
+    for (int k = 0; k < 8; k++)
+        table |= (uint64_t)base[po + k] << (8 * k);
+    uint64_t chunk0 = po + 8;
+    uint8_t *m = malloc(zs);
+    CHECK(m != NULL && table > chunk0 && table <= zs);
+    if (!m || table <= chunk0 || table > zs) {
+        free(m);
+        return;
+    }
+    uint32_t seed = 7;
+    size_t errors = 0, differ = 0;
+    for (int trial = 0; trial < 200; trial++) {
+        memcpy(m, base, zs);
+        for (int k = 0; k < 1 + trial % 4; k++) {
+            seed = seed * 1103515245u + 12345u;
+            size_t at = chunk0 + (seed >> 8) % (table - chunk0);
+            m[at] ^= (uint8_t)(1 + (seed >> 3) % 255);
+        }
+        tsl_laz_info i1, i2;
+        tessel_diag d, d2;
+        uint8_t *r1 = decode(m, zs, "c", 1, &i1, &d);
+        uint8_t *r2 = decode(m, zs, "c", 2, &i2, &d2);
+        if (!r1)
+            errors++;
+        differ += (r1 == NULL) != (r2 == NULL) ||
+                  (r1 && memcmp(r1, r2, i1.header.count * i1.header.record_length) != 0) ||
+                  (!r1 && strcmp(d.message, d2.message) != 0);
+        free(r1);
+        free(r2);
+    }
+    CHECK_MSG(differ == 0, "%s, corrupt chunks: %zu of 200 differ between 1 and 2 threads",
+              what, differ);
+    CHECK_MSG(errors > 0, "%s, corrupt chunks: no error in 200 trials", what);
+    free(m);
+}
+
 /* Header, VLR and chunk lies: an error naming the byte. */
 static void test_lies(void)
 {
@@ -630,39 +672,29 @@ static void test_lies(void)
         free(base);
         return;
     }
-    table = 0;
-    for (int k = 0; k < 8; k++)
-        table |= (uint64_t)base[po + k] << (8 * k);
-    chunk0 = po + 8;
-
-    /* Corrupt chunk bytes: an error or points, never a crash or a hang;
-     * the same outcome on one and two threads. */
-    uint32_t seed = 7;
-    size_t errors = 0, differ = 0;
-    for (int trial = 0; trial < 200; trial++) {
-        memcpy(m, base, zs);
-        for (int k = 0; k < 1 + trial % 4; k++) {
-            seed = seed * 1103515245u + 12345u;
-            size_t at = chunk0 + (seed >> 8) % (table - chunk0);
-            m[at] ^= (uint8_t)(1 + (seed >> 3) % 255);
-        }
-        tsl_laz_info i1, i2;
-        tessel_diag d2;
-        uint8_t *r1 = decode(m, zs, "c", 1, &i1, &d);
-        uint8_t *r2 = decode(m, zs, "c", 2, &i2, &d2);
-        if (!r1)
-            errors++;
-        differ += (r1 == NULL) != (r2 == NULL) ||
-                  (r1 && memcmp(r1, r2, i1.header.count * i1.header.record_length) != 0) ||
-                  (!r1 && strcmp(d.message, d2.message) != 0);
-        free(r1);
-        free(r2);
-    }
-    CHECK_MSG(differ == 0, "corrupt chunks: %zu of 200 differ between 1 and 2 threads",
-              differ);
-    CHECK_MSG(errors > 0, "corrupt chunks: no error in 200 trials");
+    corrupt_trials(base, zs, po, "COPC");
     free(m);
     free(base);
+}
+
+/* Chunks decoded two by two (one thread, formats 0-3: in lockstep) and one
+ * at a time (two threads, three chunks) give the same records and errors
+ * for corrupt chunks. */
+static void test_pairs(void)
+{
+    static const char *const files[] = {"gen_fmt1.laz", "gen_fmt2.laz", "gen_fmt0.laz"};
+    for (size_t f = 0; f < sizeof files / sizeof files[0]; f++) {
+        size_t zs;
+        uint8_t *z = load(files[f], &zs);
+        CHECK_MSG(z != NULL, "missing %s", files[f]);
+        if (!z)
+            continue;
+        tsl_las_header h;
+        tessel_diag d;
+        CHECK(tsl_las_header_parse(z, zs, zs, files[f], &h, &d) == TESSEL_OK);
+        corrupt_trials(z, zs, h.point_offset, files[f]);
+        free(z);
+    }
 }
 
 /* World coordinates of a cloud, sorted (x, then y, then z). */
@@ -904,6 +936,7 @@ int main(void)
     test_missing_table();
     test_prefixes();
     test_lies();
+    test_pairs();
     test_bbox();
     test_public();
     return TEST_SUMMARY();
