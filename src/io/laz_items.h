@@ -68,15 +68,15 @@ int laz_decode_chunk(laz_decoder *dec, const uint8_t *p, const uint8_t *end, siz
 
 /* Two chunks of one file, each with its own decoder: the same results as
  * laz_decode_chunk on each, faster for formats 0-3 (version 2 items), whose
- * two streams are decoded together, point by point. */
+ * two streams are decoded together, in lockstep symbol by symbol. */
 void laz_decode_chunk2(laz_decoder *dec[2], const uint8_t *p[2], const uint8_t *end[2],
                        const size_t count[2], uint8_t *out[2], size_t consumed[2],
                        laz_chunk_status st[2]);
 
 /* RGB12 v2 and RGB14: the colour c from the last one (byte_used: 128
- * symbols, diff: six models of 256), in two steps so that two chunks can
- * alternate symbol by symbol: which bytes changed (laz_rgb_used), then the
- * changed bytes' symbols in the reference's order (laz_rgb_byte for
+ * symbols, diff: six models of 256), in steps so that two chunks can
+ * alternate symbol by symbol: which bytes changed (a symbol of byte_used),
+ * the changed bytes' symbols in the reference's order (laz_rgb_byte for
  * j = 0..5), then the colour from them (laz_rgb_combine). Here and below,
  * inline: the callers in both item files keep their decoder in registers
  * through them. */

@@ -987,9 +987,9 @@ static size_t pw_chunk_v2(const pw_v2 *v, laz_dec *dp, size_t i, size_t count, u
     return i;
 }
 
-/* Points 1..count-1 of two formats 0-3 chunks at once, a and b alternating
- * field by field: the two streams are independent dependency chains, which
- * the core overlaps, where one chunk alone waits on every symbol. Each
+/* Points 1..count-1 of two formats 0-3 chunks at once, a and b in lockstep
+ * symbol by symbol: the two streams are independent dependency chains,
+ * which the core overlaps, where one chunk alone waits on every symbol. Each
  * chunk stops where it would alone: the rest of the longer one, and of
  * one whose partner raised a flag, goes on alone. i[]: as pw_chunk_v2's
  * return. */
