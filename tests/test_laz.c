@@ -580,9 +580,6 @@ static void test_lies(void)
         return;
     }
     size_t v = (size_t)(vlr - base), po = h.point_offset;
-    uint64_t table = 0;
-    for (int k = 0; k < 8; k++)
-        table |= (uint64_t)base[po + k] << (8 * k);
     size_t chunk0 = po + 8;
     uint8_t *m = malloc(zs);
 
