@@ -47,8 +47,8 @@
 #define KD_LEAF_MAX 16
 /* Subtrees with more points than this are built as separate OpenMP tasks. */
 #define KD_TASK_MIN 131072
-/* Sorted insertion beats a heap for small k; above this, knn uses a heap. */
-#define KD_SORTED_MAX 48
+/* Sorted insertion beats a heap up to this k (docs/neighbours.md); above, knn uses a heap. */
+#define KD_SORTED_MAX 128
 /* knn without a dist2 array keeps the distances on the stack up to this k. */
 #define KD_STACK_K 256
 
