@@ -31,7 +31,17 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#if defined(__GNUC__)
+/* Forced inlining keeps the decoder's state in registers; under the
+ * sanitizers it only makes clang take many minutes over the pair's loop. */
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define LAZ_NO_FORCED_INLINE 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define LAZ_NO_FORCED_INLINE 1
+#endif
+#if defined(__GNUC__) && !defined(LAZ_NO_FORCED_INLINE)
 #define LAZ_INLINE static inline __attribute__((always_inline))
 #else
 #define LAZ_INLINE static inline
