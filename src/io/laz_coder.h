@@ -321,14 +321,10 @@ LAZ_INLINE int32_t laz_ic_low(laz_ic *ic, laz_dec *d, uint32_t k, uint32_t c)
     return laz_i32(c + adj);
 }
 
-LAZ_INLINE int32_t laz_ic_corrector_k(laz_ic *ic, laz_dec *d, uint32_t k)
-{
-    return laz_ic_low(ic, d, k, laz_ic_high(ic, d, k));
-}
-
 LAZ_INLINE int32_t laz_ic_corrector(laz_ic *ic, laz_dec *d, uint32_t context)
 {
-    return laz_ic_corrector_k(ic, d, laz_decode_symbol(d, &ic->mbits[context]));
+    uint32_t k = laz_decode_symbol(d, &ic->mbits[context]);
+    return laz_ic_low(ic, d, k, laz_ic_high(ic, d, k));
 }
 
 /* The value of prediction pred plus corrector corr, folded into range. */

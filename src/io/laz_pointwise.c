@@ -521,6 +521,19 @@ static inline laz_model *gps_model_v2(gps_state *s)
     return s->last_diff[s->last] == 0 ? &s->zero_diff : &s->multi;
 }
 
+/* A time in full, starting the next of the four sequences (its high half
+ * predicted from the current sequence's). */
+LAZ_INLINE void gps_full_v2(gps_state *s, laz_dec *d)
+{
+    s->next = (s->next + 1) & 3;
+    uint32_t hi = (uint32_t)laz_ic_decompress(
+        &s->ic, d, laz_i32((uint32_t)(s->last_gps[s->last] >> 32)), 8);
+    s->last_gps[s->next] = ((uint64_t)hi << 32) | laz_read_int(d);
+    s->last = s->next;
+    s->last_diff[s->last] = 0;
+    s->extreme[s->last] = 0;
+}
+
 /* What follows symbol `multi` of gps_model_v2: 1 when the time is decoded,
  * 0 when the sequence switched (another symbol follows). */
 LAZ_INLINE int gps_round_v2(gps_state *s, laz_dec *d, uint32_t multi)
@@ -532,13 +545,7 @@ LAZ_INLINE int gps_round_v2(gps_state *s, laz_dec *d, uint32_t multi)
             s->last_gps[last] += (uint64_t)(int64_t)s->last_diff[last];
             s->extreme[last] = 0;
         } else if (multi == 2) {
-            s->next = (s->next + 1) & 3;
-            uint32_t hi = (uint32_t)laz_ic_decompress(
-                &s->ic, d, laz_i32((uint32_t)(s->last_gps[last] >> 32)), 8);
-            s->last_gps[s->next] = ((uint64_t)hi << 32) | laz_read_int(d);
-            s->last = s->next;
-            s->last_diff[s->last] = 0;
-            s->extreme[s->last] = 0;
+            gps_full_v2(s, d);
         } else if (multi > 2) {
             s->last = (last + multi - 2) & 3;
             return 0;
@@ -553,13 +560,7 @@ LAZ_INLINE int gps_round_v2(gps_state *s, laz_dec *d, uint32_t multi)
                                               &s->extreme[last], multi);
             s->last_gps[last] += (uint64_t)(int64_t)diff;
         } else if (multi == GPS_V2_CODE_FULL) {
-            s->next = (s->next + 1) & 3;
-            uint32_t hi = (uint32_t)laz_ic_decompress(
-                &s->ic, d, laz_i32((uint32_t)(s->last_gps[last] >> 32)), 8);
-            s->last_gps[s->next] = ((uint64_t)hi << 32) | laz_read_int(d);
-            s->last = s->next;
-            s->last_diff[s->last] = 0;
-            s->extreme[s->last] = 0;
+            gps_full_v2(s, d);
         } else if (multi > GPS_V2_CODE_FULL) {
             s->last = (last + multi - GPS_V2_CODE_FULL) & 3;
             return 0;
