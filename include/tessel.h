@@ -1472,6 +1472,13 @@ typedef struct tessel_smooth_recon_params {
                                         finer than the noise cannot be
                                         recovered anyway. Default 1.0; 0: no
                                         measurement, no thinning */
+    double noise, noise_ratio;       /* the cloud's noise when it was
+                                        measured already (tessel_cloud_noise's
+                                        sigma and noise_ratio, or
+                                        tessel_choose_method's noise and
+                                        noise_ratio): used instead of measuring
+                                        again when both are above 0. Default
+                                        0: measured */
     int threads;                     /* every stage's thread count when not
                                         0; 0 (default) leaves each stage's */
 } tessel_smooth_recon_params;

@@ -766,6 +766,45 @@ static void test_pipeline_dense_noise(void)
     tessel_mesh_free(&m[1]);
 }
 
+/* A noise the caller measured already is used as given: the measured one
+ * gives the same mesh as measuring again, a larger one thins the cloud
+ * further, and a negative or NaN one is refused. */
+static void test_pipeline_given_noise(void)
+{
+    tessel_cloud c;
+    CHECK(surf_sphere_fibonacci(&c, 20000, 0.3, 5) == TESSEL_OK);
+    free(c.normals);
+    c.normals = NULL;
+    surf_noise(&c, 2.0 * sqrt(4.0 * acos(-1.0) / 20000.0), 5); /* 2 surface spacings */
+    tessel_noise_estimate e;
+    CHECK(tessel_cloud_noise(&c, 0, &e) == TESSEL_OK);
+    tessel_smooth_recon_params p = tessel_smooth_recon_params_default();
+    tessel_mesh measured, given, larger;
+    tessel_smooth_recon_stats sm, sg, sl;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &measured, &sm) == TESSEL_OK);
+    p.noise = e.sigma;
+    p.noise_ratio = e.noise_ratio;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &given, &sg) == TESSEL_OK);
+    CHECK_MSG(sm.noise == e.sigma && sg.noise == e.sigma && same_mesh(&measured, &given),
+              "given noise: measured %g, given %g, the same mesh %d", sm.noise, sg.noise,
+              same_mesh(&measured, &given));
+    p.noise = 2.0 * e.sigma;
+    p.noise_ratio = 2.0 * e.noise_ratio;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &larger, &sl) == TESSEL_OK);
+    CHECK_MSG(sl.noise == 2.0 * e.sigma && sl.points_used < sm.points_used,
+              "twice the noise: %zu points used against %zu", sl.points_used, sm.points_used);
+    tessel_mesh m;
+    p.noise = -1.0;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &m, NULL) == TESSEL_ERR_INVALID_ARG);
+    p.noise = e.sigma;
+    p.noise_ratio = NAN;
+    CHECK(tessel_reconstruct_smooth(&c, &p, NULL, &m, NULL) == TESSEL_ERR_INVALID_ARG);
+    tessel_mesh_free(&measured);
+    tessel_mesh_free(&given);
+    tessel_mesh_free(&larger);
+    tessel_cloud_free(&c);
+}
+
 /* A small sphere (radius 0.08, 5 spacings) 0.3 from a unit sphere is an
  * object of its own: after the front it holds 100 of 21,826 triangles, a
  * stray piece to the repair, whose extra attempts around it must leave the
@@ -1010,6 +1049,7 @@ int main(void)
     test_stray_pieces();
     test_pipeline_thin_torus();
     test_pipeline_dense_noise();
+    test_pipeline_given_noise();
     test_pipeline_small_object();
     test_pipeline_far_point();
     test_pipeline_threads_and_cancel();

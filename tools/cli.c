@@ -85,6 +85,15 @@ void cli_preload_cloud(const char *path, tessel_cloud *cloud, const tessel_metho
     preload.choice = *choice;
 }
 
+bool cli_chosen_noise(double *noise, double *noise_ratio)
+{
+    if (!preload.chosen || !preload.choice.measured)
+        return false;
+    *noise = preload.choice.noise;
+    *noise_ratio = preload.choice.noise_ratio;
+    return true;
+}
+
 void cli_chosen_json_end(void)
 {
     if (preload.chosen) {

@@ -55,6 +55,8 @@ int cli_exit_for_write(tessel_status status);
  * instead of reading the file again, and the summaries say which method
  * was chosen and why (cli_chosen_*). */
 void cli_preload_cloud(const char *path, tessel_cloud *cloud, const tessel_method_choice *choice);
+/* The noise the method's choice measured on the preloaded cloud, if it did. */
+bool cli_chosen_noise(double *noise, double *noise_ratio);
 /* The JSON summary's end: the chosen method's fields (when the method was
  * chosen) and the closing brace and newline. */
 void cli_chosen_json_end(void);

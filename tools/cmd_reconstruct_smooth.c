@@ -247,6 +247,8 @@ int cli_reconstruct_smooth_with(int argc, char **argv, const cli_smooth_hooks *h
     if (rc != CLI_OK)
         return rc;
     double t_read = cli_now() - t0;
+    /* Measured once: the choice of the method did it on this cloud. */
+    cli_chosen_noise(&o.p.noise, &o.p.noise_ratio);
 
     cli_progress prog;
     cli_progress_init(&prog, &common);

@@ -244,8 +244,10 @@ static tessel_status measure_noise(const tessel_cloud *cloud, const tessel_smoot
     if (!(p->noise_ratio_max > 0.0))
         return TESSEL_OK;
     double t0 = tsl_seconds();
-    tessel_noise_estimate e;
-    tessel_status st = tessel_cloud_noise(cloud, p->threads ? p->threads : p->smooth.threads, &e);
+    tessel_noise_estimate e = {.sigma = p->noise, .noise_ratio = p->noise_ratio};
+    tessel_status st = TESSEL_OK;
+    if (!(p->noise > 0.0 && p->noise_ratio > 0.0))
+        st = tessel_cloud_noise(cloud, p->threads ? p->threads : p->smooth.threads, &e);
     if (st == TESSEL_ERR_TOO_FEW_POINTS)
         return TESSEL_OK; /* too small to say: the stages decide */
     if (st)
@@ -867,6 +869,9 @@ tessel_status tsl_reconstruct_smooth_with(const tessel_cloud *cloud,
     if (!cloud || (cloud->count && !cloud->xyz))
         return TESSEL_ERR_INVALID_ARG;
     tessel_smooth_recon_params p = params ? *params : tessel_smooth_recon_params_default();
+    if (!(p.noise >= 0.0 && p.noise < INFINITY && p.noise_ratio >= 0.0 &&
+          p.noise_ratio < INFINITY))
+        return TESSEL_ERR_INVALID_ARG;
     if (p.threads) {
         p.smooth.threads = p.simplify.cluster.threads = p.simplify.projection.threads =
             p.front.threads = p.refine.threads = p.threads;

@@ -156,6 +156,10 @@ tessel_status tessel_reconstruct(const tessel_cloud *cloud, const tessel_reconst
         st = fixed_plane(cloud, &p, callbacks, mesh, &s);
         break;
     case TESSEL_METHOD_SMOOTH:
+        if (s.choice.measured && !(p.smooth.noise > 0.0)) {
+            p.smooth.noise = s.choice.noise;
+            p.smooth.noise_ratio = s.choice.noise_ratio;
+        }
         st = tessel_reconstruct_smooth(cloud, &p.smooth, callbacks, mesh, &s.smooth);
         s.boundary_edges = s.smooth.border_edges;
         break;
