@@ -24,6 +24,9 @@
  *                        sphere, jittered (fast: for 10^7-point benchmarks)
  *   surf_sphere_random   n points uniformly at random on the unit sphere,
  *                        coordinates only (not an even sample)
+ *   surf_pent_torus_random  n points uniformly at random on a torus whose
+ *                        cross-section is a regular pentagon (creases of 72
+ *                        degrees), coordinates only
  *   surf_two_spheres     two unit spheres, centres (0,0,0) and
  *                        (2 + gap,0,0), coordinates only; with
  *                        surf_two_spheres_inward, the percent of a mesh's
@@ -496,6 +499,33 @@ static inline tessel_status surf_sphere_random(tessel_cloud *c, size_t n, uint64
     return TESSEL_OK;
 }
 
+/* Torus of major radius 1 whose cross-section is a regular pentagon of
+ * circumradius 0.25 in the (distance from the z axis, z) plane. Uniform on
+ * the area: a side picked at random, then a point on it kept with
+ * probability proportional to its distance from the axis. */
+#define SURF_PENT_R 0.25
+static inline tessel_status surf_pent_torus_random(tessel_cloud *c, size_t n, uint64_t seed)
+{
+    memset(c, 0, sizeof *c);
+    tessel_status st = tessel_cloud_alloc(c, n, 0, 0);
+    if (st != TESSEL_OK)
+        return st;
+    surf_rng rng = surf_seed(seed);
+    for (size_t i = 0; i < n;) {
+        int j = (int)(5.0 * surf_uniform(&rng)) % 5;
+        double a0 = 2.0 * SURF_PI * j / 5.0, a1 = 2.0 * SURF_PI * (j + 1) / 5.0;
+        double s = surf_uniform(&rng), phi = 2.0 * SURF_PI * surf_uniform(&rng);
+        double rho = 1.0 + SURF_PENT_R * ((1.0 - s) * cos(a0) + s * cos(a1));
+        double z = SURF_PENT_R * ((1.0 - s) * sin(a0) + s * sin(a1));
+        if (surf_uniform(&rng) * (1.0 + SURF_PENT_R) > rho)
+            continue;
+        c->xyz[3 * i] = (float)(rho * cos(phi));
+        c->xyz[3 * i + 1] = (float)(rho * sin(phi));
+        c->xyz[3 * i + 2] = (float)z;
+        i++;
+    }
+    return TESSEL_OK;
+}
 /* Moves every point by a Gaussian vector of standard deviation sigma per
  * axis (normals are left as they were: the true ones). */
 static inline void surf_noise(tessel_cloud *c, double sigma, uint64_t seed)

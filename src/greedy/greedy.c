@@ -254,7 +254,6 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
                              int lead_last, int *result)
 {
     *result = TRY_FAIL;
-    (void)f;
     double pr[3];
     pos(g, R, pr);
     double cap2 = 4.0 * g->rho_cap * g->rho_cap;
@@ -321,6 +320,11 @@ static tessel_status try_fan(gp *g, uint32_t R, const gp_frame *f, size_t j, int
         pos(g, a->idx, qa);
         pos(g, b->idx, qb);
         if (tsl_gp_collinear3(pr, qa, qb))
+            return TESSEL_OK;
+        /* Steep (the fixed plane of height fields takes walls on purpose). */
+        double nt[3];
+        tsl_cross(a->rel, b->rel, nt);
+        if (!g->plane_axis && tsl_dot(nt, f->n) < STEEP_COS * tsl_norm(nt))
             return TESSEL_OK;
         if (tsl_gp_edge_exists(g, R, a->idx) || tsl_gp_edge_exists(g, a->idx, b->idx) ||
             tsl_gp_edge_exists(g, b->idx, R))

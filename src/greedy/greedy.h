@@ -60,6 +60,15 @@ enum { FATE_USED = 0, FATE_DUPLICATE, FATE_ISOLATED, FATE_CLOSED_IN, FATE_UNTRIA
  * triangles (room_small.grid, 11 -> 4 components; F within 0.01). With 1,
  * man.ply also lost a 43-triangle patch of real surface. */
 #define SEED_DONE_RATIO 2
+/* A fan triangle whose projection on R's plane is smaller than this
+ * fraction of its area (steeper than 70.5 degrees) is refused (greedy.c,
+ * try_fan): section 4.1 orders candidates by their projection, which only
+ * holds while triangles stay within 90 degrees of the plane. A sliver
+ * standing across a crease (the first triangle of a seed beside a facet
+ * edge) sets its points' planes across the surface and turns the front
+ * inside out beyond the crease: knot2 at 10^7 points, a pentagonal torus
+ * at 10^5-10^6 (docs/greedy.md, "Creases"). */
+#define STEEP_COS (1.0 / 3.0)
 /* A front's triangle may not lie on a held one as a second layer: facing
  * within acos(LAYER_COS) of the same way, within LAYER_HEIGHT of its
  * longest edge off its plane, overlapping it (guard.c,
