@@ -527,7 +527,7 @@ static tessel_status tri_alloc(gp *g, uint32_t *out)
         g->tfree = g->tri[t].next[0];
     } else {
         if (g->tused == g->tcap) {
-            size_t cap = g->tcap ? 2 * g->tcap : 1024;
+            size_t cap = g->tcap ? g->tcap + g->tcap / 2 : 1024;
             if (cap >= NONE)
                 return TESSEL_ERR_LIMIT;
             /* tsl_resize: huge pages once an array reaches 4 MB. */
