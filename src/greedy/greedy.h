@@ -67,7 +67,7 @@ enum { FATE_USED = 0, FATE_DUPLICATE, FATE_ISOLATED, FATE_CLOSED_IN, FATE_UNTRIA
  * standing across a crease (the first triangle of a seed beside a facet
  * edge) sets its points' planes across the surface and turns the front
  * inside out beyond the crease: knot2 at 10^7 points, a pentagonal torus
- * at 10^5-10^6 (docs/greedy.md, "Creases"). */
+ * at 5x10^4-10^6 (docs/greedy.md, "Creases"). */
 #define STEEP_COS (1.0 / 3.0)
 /* A front's triangle may not lie on a held one as a second layer: facing
  * within acos(LAYER_COS) of the same way, within LAYER_HEIGHT of its
