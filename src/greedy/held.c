@@ -23,6 +23,9 @@
  *    consecutive neighbours in angle order leaves many slivers, mostly
  *    where two parts of the front meet; the flips remove most of them
  *    without moving or adding a vertex.
+ * 3. folded flaps, a point of three triangles outside the triangle of its
+ *    neighbours (one triangle lies flat over the other two), become that
+ *    triangle (unfold_flaps).
  *
  * Then everything goes to the sink. */
 #include "greedy/greedy.h"
@@ -422,6 +425,123 @@ static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, cons
     return s;
 }
 
+/* Normal (twice the area) of triangle (a, b, c) of the cloud's points. */
+static void normal_of(const float *xyz, uint32_t a, uint32_t b, uint32_t c, double n[3])
+{
+    double u[3], v[3];
+    for (int k = 0; k < 3; k++) {
+        u[k] = (double)xyz[3 * (size_t)b + (size_t)k] - xyz[3 * (size_t)a + (size_t)k];
+        v[k] = (double)xyz[3 * (size_t)c + (size_t)k] - xyz[3 * (size_t)a + (size_t)k];
+    }
+    tsl_cross(u, v, n);
+}
+
+static int cmp_pair(const void *pa, const void *pb)
+{
+    const uint32_t *a = pa, *b = pb;
+    return a[0] != b[0] ? (a[0] < b[0] ? -1 : 1) : (a[1] > b[1]) - (a[1] < b[1]);
+}
+
+/* Point v's closed fan of three triangles (V, A, B), (V, B, C), (V, C, A),
+ * listed in t, as the triangle (A, B, C) it should be when v lies outside
+ * that triangle: one of the three lies folded flat over the other two (the
+ * ear that closed a 3-edge hole over a fold). 0 if the fan is not such a
+ * flap. deg: triangles per point (4 meaning four or more). */
+static int flap_link(const float *xyz, const uint32_t *tris, const uint32_t t[3], uint32_t v,
+                     const uint8_t *deg, uint32_t abc[3])
+{
+    uint32_t x[3], y[3];
+    for (int i = 0; i < 3; i++) {
+        const uint32_t *T = tris + 3 * (size_t)t[i];
+        int k = T[0] == v ? 0 : T[1] == v ? 1 : 2;
+        x[i] = T[(k + 1) % 3];
+        y[i] = T[(k + 2) % 3];
+    }
+    /* The fan closes: each triangle's second corner is the next one's first. */
+    int next[3];
+    for (int i = 0; i < 3; i++) {
+        next[i] = -1;
+        for (int j = 0; j < 3; j++)
+            if (j != i && x[j] == y[i])
+                next[i] = j;
+        if (next[i] < 0)
+            return 0;
+    }
+    abc[0] = x[0];
+    abc[1] = x[next[0]];
+    abc[2] = x[next[next[0]]];
+    /* A point of exactly three triangles would be left with one (a
+     * tetrahedron's faces): not a flap. */
+    for (int i = 0; i < 3; i++)
+        if (deg[abc[i]] < 4)
+            return 0;
+    double n[3], m[3];
+    normal_of(xyz, abc[0], abc[1], abc[2], n);
+    if (!(tsl_dot(n, n) > 0.0))
+        return 0;
+    int agree = 0;
+    for (int i = 0; i < 3; i++) {
+        normal_of(xyz, v, x[i], y[i], m);
+        agree += tsl_dot(m, n) > 0.0;
+    }
+    return agree == 2;
+}
+
+/* Step 3: folded flaps, points of three triangles lying outside the
+ * triangle of their three neighbours (see flap_link): the three become
+ * that triangle and the point is left out, closed in by the surface.
+ * Boundary edges and components do not change. *count: flaps removed. */
+static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, uint8_t *fate,
+                                  size_t *count)
+{
+    *count = 0;
+    uint8_t *deg = tsl_calloc_array(n + 1, 1);
+    if (!deg)
+        return TESSEL_ERR_NOMEM;
+    for (size_t i = 0; i < 3 * all->count; i++)
+        deg[all->tris[i]] += deg[all->tris[i]] < 4;
+    size_t np = 0;
+    for (size_t i = 0; i < 3 * all->count; i++)
+        np += deg[all->tris[i]] == 3;
+    /* (point, triangle) pairs of the points of three triangles, by point. */
+    uint32_t *pair = tsl_alloc_array(2 * np + 2, sizeof *pair);
+    if (!pair) {
+        free(deg);
+        return TESSEL_ERR_NOMEM;
+    }
+    np = 0;
+    for (size_t i = 0; i < 3 * all->count; i++)
+        if (deg[all->tris[i]] == 3) {
+            pair[2 * np] = all->tris[i];
+            pair[2 * np++ + 1] = (uint32_t)(i / 3);
+        }
+    qsort(pair, np, 2 * sizeof *pair, cmp_pair);
+    uint32_t *tris = all->tris;
+    for (size_t i = 0; i + 3 <= np; i += 3) {
+        uint32_t v = pair[2 * i], t[3] = {pair[2 * i + 1], pair[2 * i + 3], pair[2 * i + 5]};
+        /* A flap removed before took one of v's triangles: v has fewer now. */
+        uint32_t abc[3];
+        if (tris[3 * (size_t)t[0]] == TESSEL_NONE || tris[3 * (size_t)t[1]] == TESSEL_NONE ||
+            tris[3 * (size_t)t[2]] == TESSEL_NONE || !flap_link(xyz, tris, t, v, deg, abc))
+            continue;
+        memcpy(tris + 3 * (size_t)t[0], abc, sizeof abc);
+        tris[3 * (size_t)t[1]] = tris[3 * (size_t)t[2]] = TESSEL_NONE;
+        for (int k = 0; k < 3; k++)
+            deg[abc[k]] -= deg[abc[k]] < 4;
+        deg[v] = 0;
+        fate[v] = FATE_CLOSED_IN;
+        (*count)++;
+    }
+    size_t w = 0;
+    for (size_t t = 0; t < all->count; t++)
+        if (tris[3 * t] != TESSEL_NONE)
+            memmove(tris + 3 * w++, tris + 3 * t, 3 * sizeof *tris);
+    all->count = w;
+    free(pair);
+    free(deg);
+    return TESSEL_OK;
+}
+
 tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           bool check, const tsl_gp_tile_runner *runner,
                           const tessel_callbacks *callbacks,
@@ -466,6 +586,13 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         if (s == TESSEL_OK)
             s = tsl_progress(callbacks, "diagonal flips", 1.0);
         summary->flips += flips;
+    }
+    if (s == TESSEL_OK) {
+        size_t flaps;
+        s = unfold_flaps(cloud->xyz, n, &all, fate, &flaps);
+        summary->triangles -= 2 * flaps;
+        summary->points_used -= flaps;
+        summary->left_closed_in += flaps;
     }
     if (s == TESSEL_OK && all.count > summary->peak_held_triangles)
         summary->peak_held_triangles = all.count;
