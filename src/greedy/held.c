@@ -425,15 +425,14 @@ static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, cons
     return s;
 }
 
-/* Normal (twice the area) of triangle (a, b, c) of the cloud's points. */
+/* Unit normal of triangle (a, b, c) of the cloud's points (0 if degenerate). */
 static void normal_of(const float *xyz, uint32_t a, uint32_t b, uint32_t c, double n[3])
 {
-    double u[3], v[3];
-    for (int k = 0; k < 3; k++) {
-        u[k] = (double)xyz[3 * (size_t)b + (size_t)k] - xyz[3 * (size_t)a + (size_t)k];
-        v[k] = (double)xyz[3 * (size_t)c + (size_t)k] - xyz[3 * (size_t)a + (size_t)k];
-    }
-    tsl_cross(u, v, n);
+    double p[3][3];
+    tsl_load(xyz + 3 * (size_t)a, p[0]);
+    tsl_load(xyz + 3 * (size_t)b, p[1]);
+    tsl_load(xyz + 3 * (size_t)c, p[2]);
+    tsl_tri_normal(p[0], p[1], p[2], n);
 }
 
 static int cmp_pair(const void *pa, const void *pb)
@@ -532,11 +531,13 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
         fate[v] = FATE_CLOSED_IN;
         (*count)++;
     }
-    size_t w = 0;
-    for (size_t t = 0; t < all->count; t++)
-        if (tris[3 * t] != TESSEL_NONE)
-            memmove(tris + 3 * w++, tris + 3 * t, 3 * sizeof *tris);
-    all->count = w;
+    if (*count) {
+        size_t w = 0;
+        for (size_t t = 0; t < all->count; t++)
+            if (tris[3 * t] != TESSEL_NONE)
+                memmove(tris + 3 * w++, tris + 3 * t, 3 * sizeof *tris);
+        all->count = w;
+    }
     free(pair);
     free(deg);
     return TESSEL_OK;
