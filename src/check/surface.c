@@ -286,14 +286,39 @@ static bool faces_intersect(const uint32_t ca[3], const uint32_t cb[3], const do
 /* Distances and sampling                                                    */
 /* ------------------------------------------------------------------------ */
 
+static double point_segment_dist2(const double p[3], const double a[3], const double b[3])
+{
+    double ab[3], ap[3], d[3];
+    tsl_sub(b, a, ab);
+    tsl_sub(p, a, ap);
+    double len2 = tsl_dot(ab, ab), t = len2 > 0.0 ? tsl_dot(ap, ab) / len2 : 0.0;
+    t = t < 0.0 ? 0.0 : (t > 1.0 ? 1.0 : t);
+    for (int k = 0; k < 3; k++)
+        d[k] = ap[k] - t * ab[k];
+    return tsl_dot(d, d);
+}
+
 /* Squared distance from p to triangle abc (Ericson 5.1.5: Voronoi regions
- * of the vertices, then edges, then the face). */
+ * of the vertices, then edges, then the face). A sliver (sine of its
+ * smallest angle below 1e-5) is measured as its three edges: the region
+ * tests' 2x2 determinants cancel there and could place the nearest point
+ * far off the triangle; the edges are within the sliver's width of it. */
 static double point_triangle_dist2(const double p[3], const double a[3], const double b[3],
                                    const double c[3])
 {
-    double ab[3], ac[3], ap[3], bp[3], cp[3], x[3];
+    double ab[3], ac[3], ap[3], bp[3], cp[3], x[3], n[3];
     tsl_sub(b, a, ab);
     tsl_sub(c, a, ac);
+    tsl_cross(ab, ac, n);
+    double bc[3];
+    tsl_sub(c, b, bc);
+    double e[3] = {tsl_dot(ab, ab), tsl_dot(ac, ac), tsl_dot(bc, bc)};
+    double longest = fmax(e[0], fmax(e[1], e[2])), shortest = fmin(e[0], fmin(e[1], e[2]));
+    double middle = e[0] + e[1] + e[2] - longest - shortest;
+    /* |n| = longest * middle * sin(smallest angle) */
+    if (!(tsl_dot(n, n) > 1e-10 * longest * middle))
+        return fmin(point_segment_dist2(p, a, b),
+                    fmin(point_segment_dist2(p, b, c), point_segment_dist2(p, c, a)));
     tsl_sub(p, a, ap);
     double d1 = tsl_dot(ab, ap), d2 = tsl_dot(ac, ap);
     if (d1 <= 0.0 && d2 <= 0.0) {
