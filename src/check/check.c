@@ -24,9 +24,10 @@
  *    one; a pair that shares an edge intersects only when the two triangles
  *    are coplanar and fold onto the same side of it, a pair sharing a vertex
  *    only when the edge opposite that vertex in one meets the other.
- *  - Distances (--input, --reference) are exact point-to-triangle distances
- *    (Ericson, "Real-Time Collision Detection", section 5.1.5) through the
- *    same hierarchy. Surfaces are sampled uniformly by area with
+ *  - Distances (--input, --reference) are point-to-triangle distances
+ *    (Ericson, "Real-Time Collision Detection", section 5.1.5; a sliver,
+ *    smallest angle's sine below 1e-5, measured as its three edges) through
+ *    the same hierarchy. Surfaces are sampled uniformly by area with
  *    MT19937-64 (Matsumoto & Nishimura 1998; Nishimura 2000) and fixed
  *    seeds, as the evaluator does, so the same samples are drawn.
  * Work is threaded with OpenMP over triangles and samples; every sum is
