@@ -68,7 +68,8 @@ static void merge_summary(tessel_recon_summary *out, const tessel_recon_summary 
 }
 
 /* The front once more over every point from the triangles in all (as
- * params.existing), its new triangles added to all. */
+ * params.existing), its new triangles added to all, with the mu the mesh
+ * was made with (the tiles' largest, not the whole cloud's estimate). */
 static tessel_status front_again(const tessel_cloud *cloud, const tessel_greedy_params *params,
                                  const char *stage, const tessel_callbacks *callbacks,
                                  gp_collect *all, uint8_t *fate, tessel_recon_summary *summary)
@@ -77,6 +78,10 @@ static tessel_status front_again(const tessel_cloud *cloud, const tessel_greedy_
     tessel_greedy_params again = *params;
     again.existing = all->tris;
     again.existing_count = all->count;
+    if (summary->mu > 0.0) {
+        again.mu = summary->mu;
+        again.mu_from_sampling = 0;
+    }
     tessel_recon_summary first = *summary;
     tessel_triangle_sink hold = {tsl_gp_collect_emit, &more};
     tessel_status s = tsl_gp_pass(cloud, &again, stage, callbacks, &hold, fate, summary);
