@@ -491,10 +491,90 @@ static int flap_link(const float *xyz, const uint32_t *tris, const uint32_t t[3]
     return agree == 2;
 }
 
+/* A flap found: its point, its three triangles and the triangle that
+ * would replace them, with that triangle's box. */
+typedef struct flap {
+    uint32_t v, t[3], abc[3];
+    float lo[3], hi[3];
+    bool crossed;
+} flap;
+
+static int cmp_flap_lo(const void *pa, const void *pb)
+{
+    const flap *a = pa, *b = pb;
+    return (a->lo[0] > b->lo[0]) - (a->lo[0] < b->lo[0]);
+}
+
+static bool boxes_meet(const float *alo, const float *ahi, const float *blo, const float *bhi)
+{
+    for (int k = 0; k < 3; k++)
+        if (ahi[k] < blo[k] || bhi[k] < alo[k])
+            return false;
+    return true;
+}
+
+static void tri_box(const float *xyz, const uint32_t *v, float lo[3], float hi[3])
+{
+    for (int k = 0; k < 3; k++) {
+        lo[k] = hi[k] = xyz[3 * (size_t)v[0] + (size_t)k];
+        for (int i = 1; i < 3; i++) {
+            float x = xyz[3 * (size_t)v[i] + (size_t)k];
+            lo[k] = x < lo[k] ? x : lo[k];
+            hi[k] = x > hi[k] ? x : hi[k];
+        }
+    }
+}
+
+static bool crosses(const float *xyz, const uint32_t ia[3], const uint32_t ib[3])
+{
+    double a[3][3], b[3][3];
+    for (int i = 0; i < 3; i++) {
+        tsl_load(xyz + 3 * (size_t)ia[i], a[i]);
+        tsl_load(xyz + 3 * (size_t)ib[i], b[i]);
+    }
+    const double *pa[3] = {a[0], a[1], a[2]}, *pb[3] = {b[0], b[1], b[2]};
+    return !tsl_triangle_degenerate(pb) && tsl_triangles_intersect(ia, pa, ib, pb);
+}
+
+/* Marks the flaps whose new triangle would cross a triangle of the mesh
+ * other than its own three, or another flap's new triangle: on clouds
+ * far from the paper's sampling (a lattice's coplanar rows) the fold can
+ * hold other triangles between its sheets. Flaps by their boxes' low x;
+ * each triangle meets those within the widest flap box of its own. */
+static void mark_crossed(const float *xyz, const gp_collect *all, flap *f, size_t nf)
+{
+    qsort(f, nf, sizeof *f, cmp_flap_lo);
+    float wide = 0.0f;
+    for (size_t k = 0; k < nf; k++)
+        wide = f[k].hi[0] - f[k].lo[0] > wide ? f[k].hi[0] - f[k].lo[0] : wide;
+    for (size_t t = 0; t < all->count; t++) {
+        const uint32_t *v = all->tris + 3 * t;
+        float lo[3], hi[3];
+        tri_box(xyz, v, lo, hi);
+        size_t a = 0, b = nf; /* the first flap with lo[0] >= lo - wide */
+        while (a < b) {
+            size_t mid = a + (b - a) / 2;
+            if (f[mid].lo[0] < lo[0] - wide)
+                a = mid + 1;
+            else
+                b = mid;
+        }
+        for (size_t k = a; k < nf && f[k].lo[0] <= hi[0]; k++)
+            if (!f[k].crossed && t != f[k].t[0] && t != f[k].t[1] && t != f[k].t[2] &&
+                boxes_meet(lo, hi, f[k].lo, f[k].hi))
+                f[k].crossed = crosses(xyz, f[k].abc, v);
+    }
+    for (size_t k = 0; k < nf; k++)
+        for (size_t j = k + 1; j < nf && f[j].lo[0] <= f[k].hi[0]; j++)
+            if (boxes_meet(f[k].lo, f[k].hi, f[j].lo, f[j].hi) && crosses(xyz, f[k].abc, f[j].abc))
+                f[k].crossed = f[j].crossed = true;
+}
+
 /* Step 3: folded flaps, points of three triangles lying outside the
  * triangle of their three neighbours (see flap_link): the three become
- * that triangle and the point is left out, closed in by the surface.
- * Boundary edges and components do not change. *count: flaps removed. */
+ * that triangle and the point is left out, closed in by the surface,
+ * unless that triangle would cross the mesh. Boundary edges and
+ * components do not change. *count: flaps removed. */
 static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, uint8_t *fate,
                                   size_t *count)
 {
@@ -509,8 +589,13 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
         np += deg[all->tris[i]] == 3;
     /* (point, triangle) pairs of the points of three triangles, by point. */
     uint32_t *pair = tsl_alloc_array(2 * np + 2, sizeof *pair);
-    if (!pair) {
+    flap *f = tsl_alloc_array(np / 3 + 1, sizeof *f);
+    uint8_t *taken = tsl_calloc_array(all->count + 1, 1);
+    if (!pair || !f || !taken) {
         free(deg);
+        free(pair);
+        free(f);
+        free(taken);
         return TESSEL_ERR_NOMEM;
     }
     np = 0;
@@ -521,19 +606,36 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
         }
     qsort(pair, np, 2 * sizeof *pair, cmp_pair);
     uint32_t *tris = all->tris;
+    size_t nf = 0;
     for (size_t i = 0; i + 3 <= np; i += 3) {
-        uint32_t v = pair[2 * i], t[3] = {pair[2 * i + 1], pair[2 * i + 3], pair[2 * i + 5]};
-        /* A flap removed before took one of v's triangles: v has fewer now. */
-        uint32_t abc[3];
-        if (tris[3 * (size_t)t[0]] == TESSEL_NONE || tris[3 * (size_t)t[1]] == TESSEL_NONE ||
-            tris[3 * (size_t)t[2]] == TESSEL_NONE || !flap_link(xyz, tris, t, v, deg, abc))
-            continue;
-        memcpy(tris + 3 * (size_t)t[0], abc, sizeof abc);
-        tris[3 * (size_t)t[1]] = tris[3 * (size_t)t[2]] = TESSEL_NONE;
+        flap *x = &f[nf];
+        x->v = pair[2 * i];
         for (int k = 0; k < 3; k++)
-            deg[abc[k]] -= deg[abc[k]] < 4;
-        deg[v] = 0;
-        fate[v] = FATE_CLOSED_IN;
+            x->t[k] = pair[2 * (i + (size_t)k) + 1];
+        /* A flap found before took one of v's triangles: v has fewer now. */
+        if (taken[x->t[0]] || taken[x->t[1]] || taken[x->t[2]] ||
+            !flap_link(xyz, tris, x->t, x->v, deg, x->abc))
+            continue;
+        for (int k = 0; k < 3; k++) {
+            taken[x->t[k]] = 1;
+            deg[x->abc[k]] -= deg[x->abc[k]] < 4;
+        }
+        deg[x->v] = 0;
+        tri_box(xyz, x->abc, x->lo, x->hi);
+        double p[3][3];
+        for (int k = 0; k < 3; k++)
+            tsl_load(xyz + 3 * (size_t)x->abc[k], p[k]);
+        const double *pp[3] = {p[0], p[1], p[2]};
+        x->crossed = tsl_triangle_degenerate(pp);
+        nf++;
+    }
+    mark_crossed(xyz, all, f, nf);
+    for (size_t k = 0; k < nf; k++) {
+        if (f[k].crossed)
+            continue;
+        memcpy(tris + 3 * (size_t)f[k].t[0], f[k].abc, sizeof f[k].abc);
+        tris[3 * (size_t)f[k].t[1]] = tris[3 * (size_t)f[k].t[2]] = TESSEL_NONE;
+        fate[f[k].v] = FATE_CLOSED_IN;
         (*count)++;
     }
     if (*count) {
@@ -545,6 +647,8 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
     }
     free(pair);
     free(deg);
+    free(f);
+    free(taken);
     return TESSEL_OK;
 }
 
