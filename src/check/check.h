@@ -39,6 +39,7 @@ typedef struct surface {
     size_t count;
     double *tri;  /* count*9 */
     double *cum;  /* count, running sum of areas */
+    uint8_t *sliver; /* count, 1: measured as its three edges */
     double slack; /* absolute rounding allowance of a distance, 1e-9 of the
                      largest coordinate */
     bvh tree;

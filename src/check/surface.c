@@ -243,13 +243,6 @@ fail:
     return st;
 }
 
-static inline bool boxes_overlap(const float *alo, const float *ahi, const float *blo,
-                                 const float *bhi)
-{
-    return alo[0] <= bhi[0] && blo[0] <= ahi[0] && alo[1] <= bhi[1] && blo[1] <= ahi[1] &&
-           alo[2] <= bhi[2] && blo[2] <= ahi[2];
-}
-
 /* Squared distance from q to a node's box (a lower bound for anything in
  * it: the float box contains the exact one). */
 static inline double box_dist2(const bvh_node *nd, const double q[3])
@@ -298,27 +291,38 @@ static double point_segment_dist2(const double p[3], const double a[3], const do
     return tsl_dot(d, d);
 }
 
-/* Squared distance from p to triangle abc (Ericson 5.1.5: Voronoi regions
- * of the vertices, then edges, then the face). A sliver (sine of its
- * smallest angle below 1e-5) is measured as its three edges: the region
- * tests' 2x2 determinants cancel there and could place the nearest point
- * far off the triangle; the edges are within the sliver's width of it. */
-static double point_triangle_dist2(const double p[3], const double a[3], const double b[3],
-                                   const double c[3])
+/* A sliver: the sine of its smallest angle below 1e-5. The closest-point
+ * regions' 2x2 determinants cancel there and could place the nearest point
+ * far off the triangle, so it is measured as its three edges, which lie
+ * within its width of it. n: the cross product of two of its edges. */
+static bool is_sliver(const double *t, const double n[3])
 {
-    double ab[3], ac[3], ap[3], bp[3], cp[3], x[3], n[3];
-    tsl_sub(b, a, ab);
-    tsl_sub(c, a, ac);
-    tsl_cross(ab, ac, n);
-    double bc[3];
-    tsl_sub(c, b, bc);
-    double e[3] = {tsl_dot(ab, ab), tsl_dot(ac, ac), tsl_dot(bc, bc)};
+    double e[3];
+    for (int i = 0; i < 3; i++) {
+        double d[3];
+        tsl_sub(t + 3 * ((i + 1) % 3), t + 3 * i, d);
+        e[i] = tsl_dot(d, d);
+    }
     double longest = fmax(e[0], fmax(e[1], e[2])), shortest = fmin(e[0], fmin(e[1], e[2]));
     double middle = e[0] + e[1] + e[2] - longest - shortest;
     /* |n| = longest * middle * sin(smallest angle) */
-    if (!(tsl_dot(n, n) > 1e-10 * longest * middle))
-        return fmin(point_segment_dist2(p, a, b),
-                    fmin(point_segment_dist2(p, b, c), point_segment_dist2(p, c, a)));
+    return !(tsl_dot(n, n) > 1e-10 * longest * middle);
+}
+
+static double point_edges_dist2(const double p[3], const double *t)
+{
+    return fmin(point_segment_dist2(p, t, t + 3),
+                fmin(point_segment_dist2(p, t + 3, t + 6), point_segment_dist2(p, t + 6, t)));
+}
+
+/* Squared distance from p to triangle abc (Ericson 5.1.5: Voronoi regions
+ * of the vertices, then edges, then the face); not for slivers. */
+static double point_triangle_dist2(const double p[3], const double a[3], const double b[3],
+                                   const double c[3])
+{
+    double ab[3], ac[3], ap[3], bp[3], cp[3], x[3];
+    tsl_sub(b, a, ab);
+    tsl_sub(c, a, ac);
     tsl_sub(p, a, ap);
     double d1 = tsl_dot(ab, ap), d2 = tsl_dot(ac, ap);
     if (d1 <= 0.0 && d2 <= 0.0) {
@@ -374,6 +378,7 @@ void tsl_check_surface_free(surface *s)
 {
     free(s->tri);
     free(s->cum);
+    free(s->sliver);
     bvh_free(&s->tree);
     memset(s, 0, sizeof *s);
 }
@@ -389,9 +394,10 @@ tessel_status tsl_check_surface_build(surface *s, const tessel_mesh *m, const ui
         n += kind[f] == KIND_OK;
     s->tri = tsl_alloc_array(n, 9 * sizeof *s->tri);
     s->cum = tsl_alloc_array(n, sizeof *s->cum);
+    s->sliver = tsl_alloc_array(n, sizeof *s->sliver);
     float *box = tsl_alloc_array(n, 6 * sizeof *box);
     tessel_status st = TESSEL_ERR_NOMEM;
-    if (!s->tri || !s->cum || !box)
+    if (!s->tri || !s->cum || !s->sliver || !box)
         goto fail;
     double acc = 0.0;
     for (size_t f = 0; f < m->triangle_count; f++) {
@@ -412,6 +418,7 @@ tessel_status tsl_check_surface_build(surface *s, const tessel_mesh *m, const ui
             continue;
         acc += 0.5 * len;
         s->cum[s->count] = acc;
+        s->sliver[s->count] = is_sliver(t, nrm);
         for (int k = 0; k < 9; k++)
             s->slack = fmax(s->slack, 1e-9 * fabs(t[k]));
         float *bx = box + 6 * s->count;
@@ -456,7 +463,8 @@ static double surface_distance(const surface *s, const double q[3], double bound
         if (nd->right == 0) {
             for (uint32_t i = nd->start; i < nd->end; i++) {
                 const double *t = s->tri + 9 * (size_t)s->tree.order[i];
-                double d2 = point_triangle_dist2(q, t, t + 3, t + 6);
+                double d2 = s->sliver[s->tree.order[i]] ? point_edges_dist2(q, t)
+                                                        : point_triangle_dist2(q, t, t + 3, t + 6);
                 if (d2 < best) {
                     best = d2;
                     nearest = s->tree.order[i];
@@ -783,7 +791,8 @@ tessel_status tsl_check_self_intersections(const tessel_mesh *m, const uint8_t *
         stack[top++] = 0;
         while (top > 0) {
             const bvh_node *nd = &tree.nodes[stack[--top]];
-            if (nd->end <= (uint32_t)q + 1 || !boxes_overlap(bi, bi + 3, nd->lo, nd->hi))
+            if (nd->end <= (uint32_t)q + 1 ||
+                !tsl_boxes_overlap(bi, bi + 3, nd->lo, nd->hi))
                 continue;
             if (nd->right != 0) {
                 stack[top++] = nd->right;
@@ -793,7 +802,7 @@ tessel_status tsl_check_self_intersections(const tessel_mesh *m, const uint8_t *
             uint32_t first = nd->start > (uint32_t)q + 1 ? nd->start : (uint32_t)q + 1;
             for (uint32_t r = first; r < nd->end; r++) {
                 const float *bj = tree.box + 6 * (size_t)r;
-                if (!boxes_overlap(bi, bi + 3, bj, bj + 3))
+                if (!tsl_boxes_overlap(bi, bi + 3, bj, bj + 3))
                     continue;
                 uint32_t fj = ids[tree.order[r]], cj[3];
                 double pj[3][3];
@@ -912,7 +921,7 @@ tessel_status tsl_check_input_figures(const tessel_mesh *m, const surface *s,
         stack[top++] = 0;
         while (top > 0 && !used[i]) {
             const bvh_node *nd = &vt.nodes[stack[--top]];
-            if (!boxes_overlap(qlo, qhi, nd->lo, nd->hi))
+            if (!tsl_boxes_overlap(qlo, qhi, nd->lo, nd->hi))
                 continue;
             if (nd->right != 0) {
                 stack[top++] = nd->right;

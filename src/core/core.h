@@ -50,6 +50,14 @@ static inline bool tsl_add_size(size_t a, size_t b, size_t *out)
 }
 
 /* qsort / bsearch order of uint64_t. */
+/* Closed float boxes [alo, ahi] and [blo, bhi] meet. */
+static inline bool tsl_boxes_overlap(const float *alo, const float *ahi, const float *blo,
+                                     const float *bhi)
+{
+    return alo[0] <= bhi[0] && blo[0] <= ahi[0] && alo[1] <= bhi[1] && blo[1] <= ahi[1] &&
+           alo[2] <= bhi[2] && blo[2] <= ahi[2];
+}
+
 static inline int tsl_cmp_u64(const void *a, const void *b)
 {
     uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;

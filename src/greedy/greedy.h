@@ -618,11 +618,11 @@ tessel_status tsl_gp_flush_out(gp *g);
 tessel_status tsl_gp_sweep(gp *g, int all);
 /* Some held triangle uses the directed edge x -> y. */
 int tsl_gp_edge_exists(const gp *g, uint32_t x, uint32_t y);
-/* Float bounding box of a triangle (inlined: called per collected triangle). */
-static inline void tsl_gp_tri_box(const gp *g, const uint32_t v[3], float lo[3], float hi[3])
+/* Float bounding box of triangle v of the points xyz. */
+static inline void tsl_tri_box(const float *xyz, const uint32_t v[3], float lo[3], float hi[3])
 {
-    const float *a = g->xyz + 3 * (size_t)v[0], *b = g->xyz + 3 * (size_t)v[1],
-                *c = g->xyz + 3 * (size_t)v[2];
+    const float *a = xyz + 3 * (size_t)v[0], *b = xyz + 3 * (size_t)v[1],
+                *c = xyz + 3 * (size_t)v[2];
     for (int k = 0; k < 3; k++) {
         float l = a[k], h = a[k];
         l = b[k] < l ? b[k] : l;
@@ -632,6 +632,11 @@ static inline void tsl_gp_tri_box(const gp *g, const uint32_t v[3], float lo[3],
         lo[k] = l;
         hi[k] = h;
     }
+}
+/* The same for the front's points (inlined: called per collected triangle). */
+static inline void tsl_gp_tri_box(const gp *g, const uint32_t v[3], float lo[3], float hi[3])
+{
+    tsl_tri_box(g->xyz, v, lo, hi);
 }
 /* Cells of the long-triangle grid that the box [lo, hi] overlaps. */
 void tsl_gp_lg_cells(const gp *g, const float lo[3], const float hi[3], uint32_t c0[3],

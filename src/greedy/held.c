@@ -505,26 +505,6 @@ static int cmp_flap_lo(const void *pa, const void *pb)
     return (a->lo[0] > b->lo[0]) - (a->lo[0] < b->lo[0]);
 }
 
-static bool boxes_meet(const float *alo, const float *ahi, const float *blo, const float *bhi)
-{
-    for (int k = 0; k < 3; k++)
-        if (ahi[k] < blo[k] || bhi[k] < alo[k])
-            return false;
-    return true;
-}
-
-static void tri_box(const float *xyz, const uint32_t *v, float lo[3], float hi[3])
-{
-    for (int k = 0; k < 3; k++) {
-        lo[k] = hi[k] = xyz[3 * (size_t)v[0] + (size_t)k];
-        for (int i = 1; i < 3; i++) {
-            float x = xyz[3 * (size_t)v[i] + (size_t)k];
-            lo[k] = x < lo[k] ? x : lo[k];
-            hi[k] = x > hi[k] ? x : hi[k];
-        }
-    }
-}
-
 static bool crosses(const float *xyz, const uint32_t ia[3], const uint32_t ib[3])
 {
     double a[3][3], b[3][3];
@@ -550,7 +530,7 @@ static void mark_crossed(const float *xyz, const gp_collect *all, flap *f, size_
     for (size_t t = 0; t < all->count; t++) {
         const uint32_t *v = all->tris + 3 * t;
         float lo[3], hi[3];
-        tri_box(xyz, v, lo, hi);
+        tsl_tri_box(xyz, v, lo, hi);
         size_t a = 0, b = nf; /* the first flap with lo[0] >= lo - wide */
         while (a < b) {
             size_t mid = a + (b - a) / 2;
@@ -561,12 +541,13 @@ static void mark_crossed(const float *xyz, const gp_collect *all, flap *f, size_
         }
         for (size_t k = a; k < nf && f[k].lo[0] <= hi[0]; k++)
             if (!f[k].crossed && t != f[k].t[0] && t != f[k].t[1] && t != f[k].t[2] &&
-                boxes_meet(lo, hi, f[k].lo, f[k].hi))
+                tsl_boxes_overlap(lo, hi, f[k].lo, f[k].hi))
                 f[k].crossed = crosses(xyz, f[k].abc, v);
     }
     for (size_t k = 0; k < nf; k++)
         for (size_t j = k + 1; j < nf && f[j].lo[0] <= f[k].hi[0]; j++)
-            if (boxes_meet(f[k].lo, f[k].hi, f[j].lo, f[j].hi) && crosses(xyz, f[k].abc, f[j].abc))
+            if (tsl_boxes_overlap(f[k].lo, f[k].hi, f[j].lo, f[j].hi) &&
+                crosses(xyz, f[k].abc, f[j].abc))
                 f[k].crossed = f[j].crossed = true;
 }
 
@@ -621,7 +602,7 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
             deg[x->abc[k]] -= deg[x->abc[k]] < 4;
         }
         deg[x->v] = 0;
-        tri_box(xyz, x->abc, x->lo, x->hi);
+        tsl_tri_box(xyz, x->abc, x->lo, x->hi);
         double p[3][3];
         for (int k = 0; k < 3; k++)
             tsl_load(xyz + 3 * (size_t)x->abc[k], p[k]);

@@ -301,166 +301,6 @@ static uint32_t label_sets(const uint32_t *nb, size_t nt, const uint8_t *in, uin
     return sets;
 }
 
-/* Votes cast again (into dense, 0 elsewhere) from the triangles t with
- * from[t]. */
-typedef tessel_status (*revote_fn)(void *ctx, const uint8_t *from, size_t nt, int threads,
-                                   float *dense);
-
-/* From the raw votes (+1 out, -1 in, 0 none): the votes averaged over
- * SMOOTH_ROUNDS rings of edge neighbours, the connected regions voting in
- * marked for flipping when they hold at least MIN_REGION triangles, more
- * inward raw votes than outward (with revote: more inward votes cast again
- * from all their triangles) and (unless whole) less than half of their
- * component, and their rims marked for dropping (see the header). */
-static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, const float *raw,
-                                  bool whole, revote_fn revote, void *ctx, int threads,
-                                  uint8_t *mark, size_t *flipped)
-{
-    if (nt >= UINT32_MAX) /* triangle ids are uint32_t, NONE the largest */
-        return TESSEL_ERR_LIMIT;
-    /* Averages of votes none of which is inward are not inward: then no
-     * region turns, and the neighbours and rounds over the whole mesh are
-     * not needed (a clean 10^7-point sample: no inward vote, 1.6 s). */
-    bool inward = false;
-    for (size_t t = 0; t < nt && !inward; t++)
-        inward = raw[t] < 0.0f;
-    if (!inward)
-        return TESSEL_OK;
-    /* Each array only while needed (10^7 points: 49 -> 33 bytes per
-     * triangle at the peak, which is the whole reconstruction's). */
-    uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb), *label = NULL, *comp = NULL, *queue = NULL;
-    float *vote = NULL, *next = NULL;
-    uint8_t *in = NULL;
-    size_t *size = NULL, *csize = NULL;
-    double *sum = NULL;
-    tessel_status st = nb ? neighbours(tri, nt, nv, threads, nb) : TESSEL_ERR_NOMEM;
-    if (st)
-        goto done;
-    vote = tsl_alloc_array(nt, sizeof *vote);
-    next = tsl_alloc_array(nt, sizeof *next);
-    if (!vote || !next) {
-        st = TESSEL_ERR_NOMEM;
-        goto done;
-    }
-    ptrdiff_t n = (ptrdiff_t)nt;
-    memcpy(vote, raw, nt * sizeof *vote);
-    for (int r = 0; r < SMOOTH_ROUNDS; r++) {
-#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
-        for (ptrdiff_t t = 0; t < n; t++) {
-            float s = vote[t];
-            int k = 1;
-            for (int i = 0; i < 3; i++) {
-                uint32_t y = nb[3 * (size_t)t + (size_t)i];
-                if (y != NONE) {
-                    s += vote[y];
-                    k++;
-                }
-            }
-            next[t] = s / (float)k;
-        }
-        float *tmp = vote;
-        vote = next;
-        next = tmp;
-    }
-    free(next);
-    next = NULL;
-    label = tsl_alloc_array(nt, sizeof *label);
-    queue = tsl_alloc_array(nt, sizeof *queue);
-    in = tsl_alloc_array(nt, sizeof *in);
-    if (!label || !queue || !in) {
-        st = TESSEL_ERR_NOMEM;
-        goto done;
-    }
-    for (size_t t = 0; t < nt; t++)
-        in[t] = vote[t] < 0.0f;
-    uint32_t nset = label_sets(nb, nt, in, label, queue);
-    size = tsl_calloc_array((size_t)nset + 1, sizeof *size);
-    sum = tsl_calloc_array((size_t)nset + 1, sizeof *sum);
-    if (!size || !sum) {
-        st = TESSEL_ERR_NOMEM;
-        goto done;
-    }
-    for (size_t t = 0; t < nt; t++)
-        if (label[t] != NONE) {
-            size[label[t]]++;
-            sum[label[t]] += raw[t];
-        }
-    bool any = false;
-    for (uint32_t l = 0; l < nset; l++)
-        any |= size[l] >= MIN_REGION && sum[l] < 0.0;
-    if (any && revote) {
-        /* From a sample of rays a region can rest on one triangle's vote,
-         * and a flap of the mesh folded over that triangle (at a crease,
-         * before the repair) makes both its rays cross an odd number of
-         * times: a 10^6 sample of knot2.gt.ply turned 57 good triangles
-         * so. Every triangle of the regions votes again. */
-        for (size_t t = 0; t < nt; t++)
-            in[t] = label[t] != NONE && size[label[t]] >= MIN_REGION && sum[label[t]] < 0.0;
-        free(vote);
-        vote = tsl_calloc_array(nt, sizeof *vote);
-        if (!vote) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        if ((st = revote(ctx, in, nt, threads, vote)))
-            goto done;
-        memset(sum, 0, ((size_t)nset + 1) * sizeof *sum);
-        for (size_t t = 0; t < nt; t++)
-            if (in[t])
-                sum[label[t]] += vote[t];
-        any = false;
-        for (uint32_t l = 0; l < nset; l++)
-            any |= size[l] >= MIN_REGION && sum[l] < 0.0;
-    }
-    /* The components' sizes only when a region may turn (mostly none: the
-     * labelling is a serial walk over the whole mesh). */
-    if (any && !whole) {
-        for (size_t t = 0; t < nt; t++)
-            in[t] = 1;
-        if (!(comp = tsl_alloc_array(nt, sizeof *comp))) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        uint32_t ncomp = label_sets(nb, nt, in, comp, queue);
-        if (!(csize = tsl_calloc_array((size_t)ncomp + 1, sizeof *csize))) {
-            st = TESSEL_ERR_NOMEM;
-            goto done;
-        }
-        for (size_t t = 0; t < nt; t++)
-            csize[comp[t]]++;
-    }
-    for (size_t t = 0; any && t < nt; t++) {
-        uint32_t l = label[t];
-        if (l != NONE && size[l] >= MIN_REGION && sum[l] < 0.0 &&
-            (whole || 2 * size[l] < csize[comp[t]]))
-            mark[t] = 1;
-    }
-    /* The region's rim: triangles with a neighbour that stays as it is. */
-    for (size_t t = 0; t < nt; t++) {
-        if (mark[t] != 1)
-            continue;
-        (*flipped)++;
-        for (int i = 0; i < 3; i++) {
-            uint32_t y = nb[3 * t + (size_t)i];
-            if (y != NONE && mark[y] == 0)
-                mark[t] = 2;
-        }
-    }
-    st = TESSEL_OK;
-done:
-    free(nb);
-    free(label);
-    free(comp);
-    free(queue);
-    free(vote);
-    free(next);
-    free(in);
-    free(size);
-    free(csize);
-    free(sum);
-    return st;
-}
-
 /* Raw votes (+1 out, -1 in, 0 none) into raw[t] of the triangles t that
  * cast rays: those with from[t] (all when from is NULL) whose place
  * mix(t) is a multiple of stride. Every triangle of the mesh is tested
@@ -542,23 +382,165 @@ static tessel_status cast(const float *xyz, const uint32_t *tri, size_t nt, cons
     return st;
 }
 
-/* mark_regions' recount for tsl_orient_check: the rays from every
- * triangle of the regions about to turn (from a sample of them when they
- * are many). */
-typedef struct recount {
-    const float *xyz;
-    const uint32_t *tri;
-} recount;
-
-static tessel_status recount_votes(void *ctx, const uint8_t *from, size_t nt, int threads,
-                                   float *dense)
+/* From the raw votes (+1 out, -1 in, 0 none): the votes averaged over
+ * SMOOTH_ROUNDS rings of edge neighbours, the connected regions voting in
+ * marked for flipping when they hold at least MIN_REGION triangles, more
+ * inward raw votes than outward (with recount, the points: more inward
+ * votes cast again from all their triangles) and (unless whole) less than
+ * half of their component, and their rims marked for dropping (see the
+ * header). */
+static tessel_status mark_regions(const uint32_t *tri, size_t nt, size_t nv, const float *raw,
+                                  bool whole, const float *recount, int threads, uint8_t *mark,
+                                  size_t *flipped)
 {
-    const recount *rc = ctx;
-    size_t m = 0;
+    if (nt >= UINT32_MAX) /* triangle ids are uint32_t, NONE the largest */
+        return TESSEL_ERR_LIMIT;
+    /* Averages of votes none of which is inward are not inward: then no
+     * region turns, and the neighbours and rounds over the whole mesh are
+     * not needed (a clean 10^7-point sample: no inward vote, 1.6 s). */
+    bool inward = false;
+    for (size_t t = 0; t < nt && !inward; t++)
+        inward = raw[t] < 0.0f;
+    if (!inward)
+        return TESSEL_OK;
+    /* Each array only while needed (10^7 points: 49 -> 33 bytes per
+     * triangle at the peak, which is the whole reconstruction's). */
+    uint32_t *nb = tsl_alloc_array(3 * nt, sizeof *nb), *label = NULL, *comp = NULL, *queue = NULL;
+    float *vote = NULL, *next = NULL;
+    uint8_t *in = NULL;
+    size_t *size = NULL, *csize = NULL;
+    double *sum = NULL;
+    tessel_status st = nb ? neighbours(tri, nt, nv, threads, nb) : TESSEL_ERR_NOMEM;
+    if (st)
+        goto done;
+    vote = tsl_alloc_array(nt, sizeof *vote);
+    next = tsl_alloc_array(nt, sizeof *next);
+    if (!vote || !next) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    ptrdiff_t n = (ptrdiff_t)nt;
+    memcpy(vote, raw, nt * sizeof *vote);
+    for (int r = 0; r < SMOOTH_ROUNDS; r++) {
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+        for (ptrdiff_t t = 0; t < n; t++) {
+            float s = vote[t];
+            int k = 1;
+            for (int i = 0; i < 3; i++) {
+                uint32_t y = nb[3 * (size_t)t + (size_t)i];
+                if (y != NONE) {
+                    s += vote[y];
+                    k++;
+                }
+            }
+            next[t] = s / (float)k;
+        }
+        float *tmp = vote;
+        vote = next;
+        next = tmp;
+    }
+    free(next);
+    next = NULL;
+    label = tsl_alloc_array(nt, sizeof *label);
+    queue = tsl_alloc_array(nt, sizeof *queue);
+    in = tsl_alloc_array(nt, sizeof *in);
+    if (!label || !queue || !in) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
     for (size_t t = 0; t < nt; t++)
-        m += from[t];
-    return cast(rc->xyz, rc->tri, nt, from, (uint32_t)((m + RAY_BUDGET - 1) / RAY_BUDGET),
-                threads, dense);
+        in[t] = vote[t] < 0.0f;
+    uint32_t nset = label_sets(nb, nt, in, label, queue);
+    size = tsl_calloc_array((size_t)nset + 1, sizeof *size);
+    sum = tsl_calloc_array((size_t)nset + 1, sizeof *sum);
+    if (!size || !sum) {
+        st = TESSEL_ERR_NOMEM;
+        goto done;
+    }
+    for (size_t t = 0; t < nt; t++)
+        if (label[t] != NONE) {
+            size[label[t]]++;
+            sum[label[t]] += raw[t];
+        }
+    bool any = false;
+    for (uint32_t l = 0; l < nset; l++)
+        any |= size[l] >= MIN_REGION && sum[l] < 0.0;
+    if (any && recount) {
+        /* From a sample of rays a region can rest on one triangle's vote,
+         * and a flap of the mesh folded over that triangle (at a crease,
+         * before the repair) makes both its rays cross an odd number of
+         * times: a 10^6 sample of knot2.gt.ply turned 57 good triangles
+         * so. Every triangle of the regions votes again. */
+        size_t m = 0;
+        for (size_t t = 0; t < nt; t++) {
+            in[t] = label[t] != NONE && size[label[t]] >= MIN_REGION && sum[label[t]] < 0.0;
+            m += in[t];
+        }
+        free(vote);
+        vote = tsl_calloc_array(nt, sizeof *vote);
+        if (!vote) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        st = cast(recount, tri, nt, in, (uint32_t)((m + RAY_BUDGET - 1) / RAY_BUDGET), threads,
+                  vote);
+        if (st)
+            goto done;
+        memset(sum, 0, ((size_t)nset + 1) * sizeof *sum);
+        for (size_t t = 0; t < nt; t++)
+            if (in[t])
+                sum[label[t]] += vote[t];
+        any = false;
+        for (uint32_t l = 0; l < nset; l++)
+            any |= size[l] >= MIN_REGION && sum[l] < 0.0;
+    }
+    /* The components' sizes only when a region may turn (mostly none: the
+     * labelling is a serial walk over the whole mesh). */
+    if (any && !whole) {
+        for (size_t t = 0; t < nt; t++)
+            in[t] = 1;
+        if (!(comp = tsl_alloc_array(nt, sizeof *comp))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        uint32_t ncomp = label_sets(nb, nt, in, comp, queue);
+        if (!(csize = tsl_calloc_array((size_t)ncomp + 1, sizeof *csize))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
+        }
+        for (size_t t = 0; t < nt; t++)
+            csize[comp[t]]++;
+    }
+    for (size_t t = 0; any && t < nt; t++) {
+        uint32_t l = label[t];
+        if (l != NONE && size[l] >= MIN_REGION && sum[l] < 0.0 &&
+            (whole || 2 * size[l] < csize[comp[t]]))
+            mark[t] = 1;
+    }
+    /* The region's rim: triangles with a neighbour that stays as it is. */
+    for (size_t t = 0; t < nt; t++) {
+        if (mark[t] != 1)
+            continue;
+        (*flipped)++;
+        for (int i = 0; i < 3; i++) {
+            uint32_t y = nb[3 * t + (size_t)i];
+            if (y != NONE && mark[y] == 0)
+                mark[t] = 2;
+        }
+    }
+    st = TESSEL_OK;
+done:
+    free(nb);
+    free(label);
+    free(comp);
+    free(queue);
+    free(vote);
+    free(next);
+    free(in);
+    free(size);
+    free(csize);
+    free(sum);
+    return st;
 }
 
 tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri, size_t nt,
@@ -573,10 +555,9 @@ tessel_status tsl_orient_check(const float *xyz, size_t nv, const uint32_t *tri,
     uint32_t stride = (uint32_t)((nt + RAY_BUDGET - 1) / RAY_BUDGET);
     float *raw = tsl_calloc_array(nt, sizeof *raw);
     tessel_status st = raw ? cast(xyz, tri, nt, NULL, stride, threads, raw) : TESSEL_ERR_NOMEM;
-    recount rc = {xyz, tri};
     if (st == TESSEL_OK)
-        st = mark_regions(tri, nt, nv, raw, false, stride > 1 ? recount_votes : NULL, &rc,
-                          threads, mark, flipped);
+        st = mark_regions(tri, nt, nv, raw, false, stride > 1 ? xyz : NULL, threads, mark,
+                          flipped);
     free(raw);
     return st;
 }
@@ -623,7 +604,7 @@ tessel_status tsl_orient_check_toward(const float *xyz, size_t nv, const uint32_
         double d = tsl_dot(nn, ref);
         raw[t] = d > 0.0 ? 1.0f : d < 0.0 ? -1.0f : 0.0f;
     }
-    tessel_status st = mark_regions(tri, nt, nv, raw, true, NULL, NULL, threads, mark, flipped);
+    tessel_status st = mark_regions(tri, nt, nv, raw, true, NULL, threads, mark, flipped);
     free(raw);
     return st;
 }
