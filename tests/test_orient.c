@@ -431,7 +431,7 @@ static void test_single_fans(bool local, uint32_t seed)
     for (uint32_t v = 0; v < m.nv; v++)
         several += fans_at(m.tri, nt, v) > 1;
     CHECK_MSG(several > 0, "single fans: the test mesh has no vertex with several fans");
-    CHECK(tsl_single_fans(m.nv, m.tri, &nt, touched) == TESSEL_OK);
+    CHECK(tsl_single_fans(m.nv, m.tri, &nt, touched, NULL, NULL) == TESSEL_OK);
     size_t left = 0;
     for (uint32_t v = 0; v < m.nv; v++) {
         left += fans_at(m.tri, nt, v) > 1;

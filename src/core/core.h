@@ -20,7 +20,19 @@
 #include <omp.h>
 #else
 static inline int omp_get_thread_num(void) { return 0; }
+static inline int omp_get_num_threads(void) { return 1; }
 #endif
+
+/* The share [*lo, *lo + *width) of the indices 0 .. n (n < 2^32) that the
+ * calling thread of a parallel region owns: scatters over a mesh's
+ * vertices run with each thread writing its own share only, every thread
+ * reading all triangles (atomic updates cost more than the scatter). */
+static inline void tsl_thread_share(size_t n, uint32_t *lo, uint32_t *width)
+{
+    size_t parts = (size_t)omp_get_num_threads(), me = (size_t)omp_get_thread_num();
+    *lo = (uint32_t)(n * me / parts);
+    *width = (uint32_t)(n * (me + 1) / parts) - *lo;
+}
 
 #if defined(__GNUC__)
 #define TSL_PRINTF(a, b) __attribute__((format(printf, a, b)))

@@ -258,7 +258,7 @@ static tessel_status place_tiles(af *s, const af *tiles, const size_t *range, si
             count++;
         }
     }
-    if ((st = tsl_single_fans(s->n, tri, &count, touched)))
+    if ((st = tsl_single_fans(s->n, tri, &count, touched, NULL, NULL)))
         goto done;
     /* Components (edge-connected: every vertex has a single fan). */
     size_t ncomp;
@@ -368,7 +368,7 @@ tessel_status tsl_af_place_start(af *s, const uint32_t *start, size_t count)
     memcpy(tri, start, 3 * count * sizeof *tri);
     for (size_t c = 0; c < 3 * count; c++)
         touched[tri[c]] = 1;
-    if ((st = tsl_single_fans(s->n, tri, &count, touched)))
+    if ((st = tsl_single_fans(s->n, tri, &count, touched, NULL, NULL)))
         goto done;
     st = import_mesh(s, tri, count, NULL, NULL);
 done:

@@ -1397,28 +1397,6 @@ tessel_status tsl_gp_space_order(const tessel_cloud *cloud, int threads, tessel_
     return TESSEL_OK;
 }
 
-/* A sink that names the points of the cloud in space order by their
- * indices in the caller's. */
-typedef struct perm_sink {
-    const tessel_triangle_sink *to;
-    const uint32_t *perm;
-} perm_sink;
-
-static tessel_status perm_emit(void *user, const uint32_t *tris, size_t count)
-{
-    const perm_sink *ps = user;
-    uint32_t buf[3 * 1024];
-    for (size_t t = 0; t < count; t += 1024) {
-        size_t m = count - t < 1024 ? count - t : 1024;
-        for (size_t i = 0; i < 3 * m; i++)
-            buf[i] = ps->perm[tris[3 * t + i]];
-        tessel_status st = ps->to->emit(ps->to->user_data, buf, m);
-        if (st)
-            return st;
-    }
-    return TESSEL_OK;
-}
-
 /* Tiled clouds are meshed with their points in space order (cells of a
  * few spacings in Morton order): the passes over the whole mesh read
  * per-point arrays through the triangles, and a cloud in random order
@@ -1437,9 +1415,7 @@ static tessel_status held_in_space_order(const tessel_cloud *cloud,
     tessel_status st = tsl_gp_space_order(cloud, params->threads, &sorted, &perm);
     if (st)
         return st;
-    perm_sink ps = {sink, perm};
-    tessel_triangle_sink out = {perm_emit, &ps};
-    st = tsl_gp_held(&sorted, params, check, runner, callbacks, &out, summary);
+    st = tsl_gp_held(&sorted, params, check, runner, callbacks, perm, sink, summary);
     tessel_cloud_free(&sorted);
     free(perm);
     return st;
@@ -1472,7 +1448,7 @@ tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
     if ((check || p.flip) && tiled)
         s = held_in_space_order(cloud, &p, check, runner, callbacks, sink, &sum);
     else if (check || p.flip)
-        s = tsl_gp_held(cloud, &p, check, runner, callbacks, sink, &sum);
+        s = tsl_gp_held(cloud, &p, check, runner, callbacks, NULL, sink, &sum);
     else
         s = tsl_gp_pass(cloud, &p, "greedy", callbacks, sink, NULL, &sum);
     if (s != TESSEL_OK)

@@ -569,15 +569,53 @@ tessel_status tsl_gp_slabs_step(tsl_gp_slabs *s, const tessel_cloud *slab, const
                                 const tessel_callbacks *callbacks,
                                 const tessel_triangle_sink *out, tessel_recon_summary *summary);
 
+/* ---- holes.c ---- */
+
+/* The count of a held mesh, kept from one hole repair to the next. */
+typedef struct gp_count {
+    uint32_t *comp;   /* per point on the mesh: its component */
+    uint32_t *size;   /* per component: its triangles */
+    uint64_t *used;   /* a bit per point: on the mesh */
+    uint64_t *open;   /* per point: tsl_open_fans of the mesh */
+    size_t ncomp;
+    uint32_t most;    /* the largest component's triangles */
+} gp_count;
+void tsl_gp_count_free(gp_count *c);
+/* Drops the pieces of fewer than 64 triangles from a mesh that has one of
+ * 64 times as many: fragments the fronts leave where they meet beside the
+ * surface (a seam, a repaired hole), a few triangles each, which would
+ * count as components of their own; their points count as closed in (their
+ * neighbours are on the mesh). Then the summary's counts of what is left
+ * (points used, left out by fate[], boundary edges, components,
+ * triangles), kept in c. */
+tessel_status tsl_gp_drop_specks_and_count(size_t n, gp_collect *all, uint8_t *fate, int threads,
+                                           gp_count *c, tessel_recon_summary *summary);
+/* Small holes the front could not close (its ear clipping finds every ear
+ * refused, mostly where the triangles beside the hole fold over each
+ * other): the boundary loops of at most max_hole edges, the triangles at
+ * their vertices and `rings` rings beyond are dropped and a front over
+ * the points within 6 spheres of influence of them runs again from the
+ * triangles there. The caller tries with 0, 1 and 2 rings while holes are
+ * left (*holes: there were small loops): a fold can lie a ring or two
+ * away from the hole, and the front then remakes it. A repair that
+ * changes the number of components (two sheets closer than the sampling
+ * joined through a hole, a piece cut off) or leaves more boundary edges is
+ * undone. summary and c hold the count before and after; the vertices of
+ * the new triangles are flagged in dirty (also when undone). */
+tessel_status tsl_gp_reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
+                                  const tessel_callbacks *callbacks, gp_collect *all,
+                                  uint8_t *fate, uint8_t *dirty, gp_count *c,
+                                  tessel_recon_summary *summary, int rings, bool *holes);
+
 /* ---- held.c ---- */
 
 /* The pass with every triangle held; then, when check, regions meshed
  * inside out found by ray parity (src/mesh/orient.c) and rebuilt by a second
  * pass; then, when params->flip, the diagonal flips; then all sent to
- * sink. */
+ * sink, each point i named perm[i] (perm NULL: i). */
 tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           bool check, const tsl_gp_tile_runner *runner,
-                          const tessel_callbacks *callbacks,
+                          const tessel_callbacks *callbacks, const uint32_t *perm,
                           const tessel_triangle_sink *sink, tessel_recon_summary *summary);
 
 /* tessel_reconstruct_greedy with the tiles meshed by runner (NULL: this

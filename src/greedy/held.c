@@ -14,9 +14,10 @@
  *    at points left with two fans (tsl_single_fans) dropped, and the front
  *    runs again from what is left (params.existing) to mesh the seams.
  * 1a. fragments, pieces of a few triangles beside a large one, are
- *    dropped (drop_specks_and_count);
+ *    dropped (tsl_gp_drop_specks_and_count, holes.c);
  * 1b. small holes the front's ear clipping could not close are reopened
- *    and meshed again by a front over the points near them (reopen_holes).
+ *    and meshed again by a front over the points near them
+ *    (tsl_gp_reopen_holes, holes.c).
  * 2. diagonals are flipped where the two angles facing them add up to
  *    more than pi, the Delaunay rule (tsl_flip_diagonals, with the
  *    refinement's checks). Joining
@@ -29,15 +30,6 @@
  *
  * Then everything goes to the sink. */
 #include "greedy/greedy.h"
-
-/* The front that closes a small hole sees the points within this many
- * spheres of influence of the hole's vertices (local.c). */
-#define HOLE_CONTEXT 6.0
-
-/* Pieces of fewer triangles than this are dropped, when the mesh has a
- * piece of SPECK_BESIDE times more (drop_specks_and_count). */
-#define SPECK_TRIANGLES 64
-#define SPECK_BESIDE 64
 
 /* The flips after tiles leave triangles with an edge over this many times
  * the mean longest edge of those they look at as they are. */
@@ -126,7 +118,7 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
         all->count = tsl_orient_apply(all->tris, all->count, mark, all->tris);
         free(mark);
         mark = NULL;
-        s = touched ? tsl_single_fans(cloud->count, all->tris, &all->count, touched)
+        s = touched ? tsl_single_fans(cloud->count, all->tris, &all->count, touched, NULL, NULL)
                     : TESSEL_ERR_NOMEM;
         free(touched);
         if (s == TESSEL_OK)
@@ -135,219 +127,6 @@ static tessel_status check_and_repair(const tessel_cloud *cloud,
         summary->reoriented = flipped;
     }
     free(mark);
-    return s;
-}
-
-/* Flags in hole[] the vertices of the boundary loops of at most max_hole
- * edges; returns how many loops, or -1 without memory. Only the
- * half-edges between vertices of open fans (sum: tsl_open_fans of the
- * mesh) are matched, by sorting. */
-static long small_loops(const uint32_t *tri, size_t nt, size_t n, const uint64_t *sum,
-                        uint32_t max_hole, uint8_t *hole)
-{
-    uint64_t *half = NULL;
-    uint32_t *next = NULL;
-    long loops = -1;
-    size_t nh = 0;
-    for (size_t t = 0; t < nt; t++)
-        for (int k = 0; k < 3; k++)
-            nh += sum[tri[3 * t + (size_t)k]] && sum[tri[3 * t + (size_t)(k + 1) % 3]];
-    half = tsl_alloc_array(nh + 1, sizeof *half);
-    next = tsl_alloc_array(n + 1, sizeof *next);
-    if (!half || !next)
-        goto done;
-    nh = 0;
-    for (size_t t = 0; t < nt; t++)
-        for (int k = 0; k < 3; k++) {
-            uint64_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
-            if (sum[a] && sum[b]) /* the edge's key, its direction in the low bit */
-                half[nh++] = a < b ? (a << 33 | b << 1) : (b << 33 | a << 1 | 1);
-        }
-    qsort(half, nh, sizeof *half, tsl_cmp_u64);
-    memset(next, 0xff, (n + 1) * sizeof *next);
-    for (size_t i = 0; i < nh;) {
-        size_t j = i;
-        while (j < nh && half[j] >> 1 == half[i] >> 1)
-            j++;
-        if (j - i == 1) {
-            uint32_t lo = (uint32_t)(half[i] >> 33), hi = (uint32_t)(half[i] >> 1) & 0xffffffffu;
-            uint32_t a = half[i] & 1 ? hi : lo, b = half[i] & 1 ? lo : hi;
-            next[a] = next[a] == NONE ? b : (uint32_t)n; /* n: two open edges (a pinch) */
-        }
-        i = j;
-    }
-    loops = 0;
-    for (uint32_t v = 0; v < n; v++) {
-        uint32_t k = 0, x = v, low = v;
-        while (k <= max_hole && next[x] < n && (k == 0 || x != v)) {
-            low = x < low ? x : low;
-            x = next[x];
-            k++;
-        }
-        if (x != v || k < 3 || k > max_hole || low != v)
-            continue;
-        loops++;
-        do {
-            hole[x] = 1;
-            x = next[x];
-        } while (x != v);
-    }
-done:
-    free(half);
-    free(next);
-    return loops;
-}
-
-/* Drops the pieces of fewer than SPECK_TRIANGLES triangles from a mesh
- * that has one of SPECK_BESIDE times as many: fragments the fronts leave
- * where they meet beside the surface (a seam, a repaired hole), a few
- * triangles each, which would count as components of their own. Their
- * points are counted as closed in (their neighbours are on the mesh).
- * Then the summary's counts of what is left: points used, left out (by
- * fate[]), boundary edges, components, triangles. One labelling of the
- * components serves both (dropping whole pieces leaves the others' as
- * they are). sum (n entries) receives tsl_open_fans of what is left, which
- * the hole repair reads next. */
-static tessel_status drop_specks_and_count(size_t n, gp_collect *all, uint8_t *fate,
-                                           uint64_t *sum, int threads,
-                                           tessel_recon_summary *summary)
-{
-    uint32_t *root = tsl_alloc_array(n + 1, sizeof *root);
-    uint32_t *size = tsl_calloc_array(n + 1, sizeof *size);
-    uint8_t *used = tsl_calloc_array(n + 1, 1);
-    tessel_status s = root && size && used ? TESSEL_OK : TESSEL_ERR_NOMEM;
-    if (s)
-        goto done;
-    tsl_vertex_components(all->tris, all->count, n, threads, root);
-    uint32_t most = 0;
-    for (size_t t = 0; t < all->count; t++) {
-        uint32_t r = root[all->tris[3 * t]];
-        most = ++size[r] > most ? size[r] : most;
-    }
-    if (most >= SPECK_BESIDE * SPECK_TRIANGLES) {
-        size_t w = 0;
-        for (size_t t = 0; t < all->count; t++) {
-            uint32_t *v = all->tris + 3 * t;
-            if (size[root[v[0]]] < SPECK_TRIANGLES) {
-                fate[v[0]] = fate[v[1]] = fate[v[2]] = FATE_CLOSED_IN;
-                continue;
-            }
-            memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
-        }
-        all->count = w;
-    }
-    /* Every vertex has a single fan: one boundary edge per open fan. */
-    tsl_open_fans(all->tris, all->count, n, sum);
-    for (size_t i = 0; i < 3 * all->count; i++)
-        used[all->tris[i]] = 1;
-    size_t count[FATE_UNTRIANGULATED + 1] = {0}, boundary = 0, components = 0;
-    for (size_t i = 0; i < n; i++) {
-        count[used[i] ? FATE_USED : fate[i]]++;
-        boundary += sum[i] != 0;
-        components += used[i] && root[i] == i;
-    }
-    summary->boundary_edges = boundary;
-    summary->components = components;
-    summary->points_used = count[FATE_USED];
-    summary->left_duplicate = count[FATE_DUPLICATE];
-    summary->left_isolated = count[FATE_ISOLATED];
-    summary->left_closed_in = count[FATE_CLOSED_IN];
-    summary->left_untriangulated = count[FATE_UNTRIANGULATED];
-    summary->triangles = all->count;
-    summary->points_in = n;
-done:
-    free(root);
-    free(size);
-    free(used);
-    return s;
-}
-
-/* Step 1b: small holes the front could not close (its ear clipping finds
- * every ear refused, mostly where the triangles beside the hole fold over
- * each other): the triangles at their vertices and `rings` rings beyond
- * are dropped and a front over the points within HOLE_CONTEXT spheres of
- * influence of them runs again from the triangles there. The caller tries
- * with 0, 1 and 2 rings while holes are left: a fold can lie a ring or two
- * away from the hole, and the front then remakes it. *holes: whether
- * there were small loops to repair. Where two sheets pass closer than
- * the sampling (two spheres touching), that front can join them through a
- * hole, or it can leave a piece cut off: a repair that changes the number
- * of components, or leaves more boundary edges, is undone. summary holds
- * the counts of the mesh before and after; the vertices of the new
- * triangles are flagged in dirty (also when undone: a few more to look at). */
-static tessel_status reopen_holes(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                                  const tessel_callbacks *callbacks, gp_collect *all,
-                                  uint8_t *fate, uint8_t *dirty, uint64_t *open,
-                                  tessel_recon_summary *summary, int rings, bool *holes)
-{
-    *holes = false;
-    if (params->max_hole < 3)
-        return TESSEL_OK;
-    size_t n = cloud->count;
-    uint8_t *hole = tsl_calloc_array(n + 1, 1), *touched = tsl_calloc_array(n + 1, 1);
-    uint8_t *sel = tsl_calloc_array(n + 1, 1);
-    long loops = hole && touched && sel
-                     ? small_loops(all->tris, all->count, n, open, params->max_hole, hole)
-                     : -1;
-    *holes = loops > 0;
-    size_t before_count = all->count;
-    uint32_t *saved = loops > 0 ? tsl_alloc_array(3 * before_count, sizeof *saved) : NULL;
-    uint8_t *saved_fate = loops > 0 ? tsl_alloc_array(n, 1) : NULL;
-    tessel_status s = loops < 0 || (loops > 0 && (!saved || !saved_fate)) ? TESSEL_ERR_NOMEM
-                                                                          : TESSEL_OK;
-    if (loops > 0 && s == TESSEL_OK) {
-        /* The loops' vertices and `rings` rings of triangles around them
-         * (sel as scratch). */
-        for (int r = 0; r < rings; r++) {
-            memcpy(sel, hole, n);
-            for (size_t t = 0; t < all->count; t++) {
-                const uint32_t *v = all->tris + 3 * t;
-                if (sel[v[0]] || sel[v[1]] || sel[v[2]])
-                    hole[v[0]] = hole[v[1]] = hole[v[2]] = 1;
-            }
-        }
-        memset(sel, 0, n);
-        memcpy(saved, all->tris, 3 * before_count * sizeof *saved);
-        memcpy(saved_fate, fate, n);
-        tessel_recon_summary before = *summary;
-        s = tsl_gp_select_near(cloud->xyz, n, hole, HOLE_CONTEXT * summary->mu * summary->spacing,
-                               params->threads, sel);
-        tsl_gp_select_meshed(n, fate, NULL, 0.0, sel);
-        size_t w = 0;
-        for (size_t t = 0; s == TESSEL_OK && t < all->count; t++) {
-            uint32_t *v = all->tris + 3 * t;
-            if (hole[v[0]] || hole[v[1]] || hole[v[2]]) {
-                touched[v[0]] = touched[v[1]] = touched[v[2]] = 1;
-                continue;
-            }
-            memmove(all->tris + 3 * w++, v, 3 * sizeof *v);
-        }
-        all->count = s == TESSEL_OK ? w : all->count;
-        tessel_greedy_params hp = *params;
-        hp.mu = summary->mu;
-        hp.mu_from_sampling = 0;
-        if (s == TESSEL_OK)
-            s = tsl_single_fans(n, all->tris, &all->count, touched);
-        if (s == TESSEL_OK)
-            s = tsl_gp_local_pass(cloud, sel, &hp, "greedy: hole repair", callbacks, all, fate,
-                                  dirty, summary);
-        if (s == TESSEL_OK)
-            s = drop_specks_and_count(n, all, fate, open, params->threads, summary);
-        /* Joined or split, or more open: undone. */
-        if (s == TESSEL_OK && (summary->components != before.components ||
-                               summary->boundary_edges > before.boundary_edges)) {
-            memcpy(all->tris, saved, 3 * before_count * sizeof *saved);
-            memcpy(fate, saved_fate, n);
-            all->count = before_count;
-            *summary = before;
-            tsl_open_fans(all->tris, all->count, n, open);
-        }
-    }
-    free(hole);
-    free(touched);
-    free(sel);
-    free(saved);
-    free(saved_fate);
     return s;
 }
 
@@ -367,30 +146,35 @@ static tessel_status flip_dirty(const tessel_cloud *cloud, gp_collect *all, cons
     uint8_t *flip = tsl_alloc_array(nt + 1, 1), *seed = tsl_calloc_array(n + 1, 1);
     tsl_gp_near near = {0};
     tessel_status s = flip && seed ? TESSEL_OK : TESSEL_ERR_NOMEM;
-    double sum = 0.0;
-    size_t count = 0;
-    for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
+    ptrdiff_t count_t = s == TESSEL_OK ? (ptrdiff_t)nt : 0;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+    for (ptrdiff_t t = 0; t < count_t; t++) {
         const uint32_t *v = all->tris + 3 * t;
         flip[t] = dirty[v[0]] || dirty[v[1]] || dirty[v[2]];
+    }
+    /* The mean in triangle order, on one thread: the same sum for any
+     * thread count (the dirty triangles are a few percent). */
+    double sum = 0.0;
+    size_t count = 0;
+    for (ptrdiff_t t = 0; t < count_t; t++)
         if (flip[t]) {
-            sum += sqrt(tsl_longest_edge2(cloud->xyz, v, 1, NULL));
+            sum += sqrt(tsl_longest_edge2(cloud->xyz, all->tris + 3 * t, 1, NULL));
             count++;
         }
-    }
-    double cap = count ? FLIP_LONG * sum / (double)count : 0.0;
-    for (size_t t = 0; s == TESSEL_OK && t < nt; t++) {
+    double cap = count ? FLIP_LONG * sum / (double)count : 0.0, l2 = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : l2) num_threads(tsl_threads(threads))
+    for (ptrdiff_t t = 0; t < count_t; t++) {
         const uint32_t *v = all->tris + 3 * t;
-        flip[t] = flip[t] && tsl_longest_edge2(cloud->xyz, v, 1, NULL) <= cap * cap;
-        if (flip[t])
-            seed[v[0]] = seed[v[1]] = seed[v[2]] = 1;
+        double e2 = flip[t] ? tsl_longest_edge2(cloud->xyz, v, 1, NULL) : 0.0;
+        flip[t] = flip[t] && e2 <= cap * cap;
+        if (!flip[t])
+            continue;
+        l2 = e2 > l2 ? e2 : l2;
+        for (int k = 0; k < 3; k++)
+            __atomic_store_n(&seed[v[k]], 1, __ATOMIC_RELAXED);
     }
-    double l2 = 0.0;
-    for (size_t t = 0; s == TESSEL_OK && t < nt; t++)
-        if (flip[t])
-            l2 = fmax(l2, tsl_longest_edge2(cloud->xyz, all->tris + 3 * t, 1, NULL));
     if (s == TESSEL_OK)
         s = tsl_gp_near_build(cloud->xyz, n, seed, sqrt(l2), &near);
-    ptrdiff_t count_t = s == TESSEL_OK ? (ptrdiff_t)nt : 0;
 #pragma omp parallel for schedule(static) reduction(+ : m) num_threads(tsl_threads(threads))
     for (ptrdiff_t t = 0; t < count_t; t++) {
         float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -521,13 +305,18 @@ static bool crosses(const float *xyz, const uint32_t ia[3], const uint32_t ib[3]
  * far from the paper's sampling (a lattice's coplanar rows) the fold can
  * hold other triangles between its sheets. Flaps by their boxes' low x;
  * each triangle meets those within the widest flap box of its own. */
-static void mark_crossed(const float *xyz, const gp_collect *all, flap *f, size_t nf)
+static void mark_crossed(const float *xyz, const gp_collect *all, flap *f, size_t nf,
+                         int threads)
 {
     qsort(f, nf, sizeof *f, cmp_flap_lo);
     float wide = 0.0f;
     for (size_t k = 0; k < nf; k++)
         wide = f[k].hi[0] - f[k].lo[0] > wide ? f[k].hi[0] - f[k].lo[0] : wide;
-    for (size_t t = 0; t < all->count; t++) {
+    /* Each triangle's tests on the threads; a flap once crossed stays so
+     * (the flag only ever becomes true: the same for any thread count). */
+    ptrdiff_t nt = (ptrdiff_t)all->count;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+    for (ptrdiff_t t = 0; t < nt; t++) {
         const uint32_t *v = all->tris + 3 * t;
         float lo[3], hi[3];
         tsl_tri_box(xyz, v, lo, hi);
@@ -540,9 +329,10 @@ static void mark_crossed(const float *xyz, const gp_collect *all, flap *f, size_
                 b = mid;
         }
         for (size_t k = a; k < nf && f[k].lo[0] <= hi[0]; k++)
-            if (!f[k].crossed && t != f[k].t[0] && t != f[k].t[1] && t != f[k].t[2] &&
-                tsl_boxes_overlap(lo, hi, f[k].lo, f[k].hi))
-                f[k].crossed = crosses(xyz, f[k].abc, v);
+            if (!__atomic_load_n(&f[k].crossed, __ATOMIC_RELAXED) && (uint32_t)t != f[k].t[0] &&
+                (uint32_t)t != f[k].t[1] && (uint32_t)t != f[k].t[2] &&
+                tsl_boxes_overlap(lo, hi, f[k].lo, f[k].hi) && crosses(xyz, f[k].abc, v))
+                __atomic_store_n(&f[k].crossed, true, __ATOMIC_RELAXED);
     }
     for (size_t k = 0; k < nf; k++)
         for (size_t j = k + 1; j < nf && f[j].lo[0] <= f[k].hi[0]; j++)
@@ -556,18 +346,29 @@ static void mark_crossed(const float *xyz, const gp_collect *all, flap *f, size_
  * that triangle and the point is left out, closed in by the surface,
  * unless that triangle would cross the mesh. Boundary edges and
  * components do not change. *count: flaps removed. */
-static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, uint8_t *fate,
-                                  size_t *count)
+static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, int threads,
+                                  uint8_t *fate, size_t *count)
 {
     *count = 0;
     uint8_t *deg = tsl_calloc_array(n + 1, 1);
     if (!deg)
         return TESSEL_ERR_NOMEM;
-    for (size_t i = 0; i < 3 * all->count; i++)
-        deg[all->tris[i]] += deg[all->tris[i]] < 4;
+    ptrdiff_t corners = 3 * (ptrdiff_t)all->count;
     size_t np = 0;
-    for (size_t i = 0; i < 3 * all->count; i++)
-        np += deg[all->tris[i]] == 3;
+#pragma omp parallel num_threads(tsl_threads(threads))
+    {
+        uint32_t lo, width;
+        tsl_thread_share(n, &lo, &width);
+        for (ptrdiff_t i = 0; i < corners; i++) {
+            uint32_t v = all->tris[i];
+            if (v - lo < width)
+                deg[v] += deg[v] < 4;
+        }
+#pragma omp barrier
+#pragma omp for schedule(static) reduction(+ : np)
+        for (ptrdiff_t i = 0; i < corners; i++)
+            np += deg[all->tris[i]] == 3;
+    }
     /* (point, triangle) pairs of the points of three triangles, by point. */
     uint32_t *pair = tsl_alloc_array(2 * np + 2, sizeof *pair);
     flap *f = tsl_alloc_array(np / 3 + 1, sizeof *f);
@@ -579,11 +380,14 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
         free(taken);
         return TESSEL_ERR_NOMEM;
     }
-    np = 0;
-    for (size_t i = 0; i < 3 * all->count; i++)
+    /* The pairs in any order: sorted next (each pair is distinct). */
+    size_t at = 0;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
+    for (ptrdiff_t i = 0; i < corners; i++)
         if (deg[all->tris[i]] == 3) {
-            pair[2 * np] = all->tris[i];
-            pair[2 * np++ + 1] = (uint32_t)(i / 3);
+            size_t k = __atomic_fetch_add(&at, 1, __ATOMIC_RELAXED);
+            pair[2 * k] = all->tris[i];
+            pair[2 * k + 1] = (uint32_t)(i / 3);
         }
     qsort(pair, np, 2 * sizeof *pair, cmp_pair);
     uint32_t *tris = all->tris;
@@ -610,7 +414,7 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
         x->crossed = tsl_triangle_degenerate(pp);
         nf++;
     }
-    mark_crossed(xyz, all, f, nf);
+    mark_crossed(xyz, all, f, nf, threads);
     for (size_t k = 0; k < nf; k++) {
         if (f[k].crossed)
             continue;
@@ -635,7 +439,7 @@ static tessel_status unfold_flaps(const float *xyz, size_t n, gp_collect *all, u
 
 tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params *params,
                           bool check, const tsl_gp_tile_runner *runner,
-                          const tessel_callbacks *callbacks,
+                          const tessel_callbacks *callbacks, const uint32_t *perm,
                           const tessel_triangle_sink *sink, tessel_recon_summary *summary)
 {
     gp_collect all = {NULL, 0, 0};
@@ -654,17 +458,15 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
         s = check_and_repair(cloud, params, callbacks, &all, fate, summary);
         all_dirty = all_dirty || summary->reoriented != before;
     }
-    /* The open fans of the mesh, from the count to each hole round. */
-    uint64_t *open = s == TESSEL_OK ? tsl_alloc_array(n + 1, sizeof *open) : NULL;
-    if (s == TESSEL_OK && !open)
-        s = TESSEL_ERR_NOMEM;
+    /* The mesh's count, from the first to each hole round. */
+    gp_count count = {0};
     if (s == TESSEL_OK)
-        s = drop_specks_and_count(n, &all, fate, open, params->threads, summary);
+        s = tsl_gp_drop_specks_and_count(n, &all, fate, params->threads, &count, summary);
     bool holes = true;
     for (int round = 0; round < 3 && s == TESSEL_OK && holes && summary->boundary_edges; round++)
-        s = reopen_holes(cloud, params, callbacks, &all, fate, dirty, open, summary, round,
-                         &holes);
-    free(open);
+        s = tsl_gp_reopen_holes(cloud, params, callbacks, &all, fate, dirty, &count, summary,
+                                round, &holes);
+    tsl_gp_count_free(&count);
     if (s == TESSEL_OK && params->flip) {
         /* Added to the tiles' flips, when there were tiles. The flips
          * change no count of the summary. */
@@ -680,13 +482,17 @@ tessel_status tsl_gp_held(const tessel_cloud *cloud, const tessel_greedy_params 
     }
     if (s == TESSEL_OK) {
         size_t flaps;
-        s = unfold_flaps(cloud->xyz, n, &all, fate, &flaps);
+        s = unfold_flaps(cloud->xyz, n, &all, params->threads, fate, &flaps);
         summary->triangles -= 2 * flaps;
         summary->points_used -= flaps;
         summary->left_closed_in += flaps;
     }
     if (s == TESSEL_OK && all.count > summary->peak_held_triangles)
         summary->peak_held_triangles = all.count;
+    ptrdiff_t corners = s == TESSEL_OK && perm ? 3 * (ptrdiff_t)all.count : 0;
+#pragma omp parallel for schedule(static) num_threads(tsl_threads(params->threads))
+    for (ptrdiff_t i = 0; i < corners; i++)
+        all.tris[i] = perm[all.tris[i]];
     for (size_t t = 0; s == TESSEL_OK && t < all.count; t += OUT_BATCH) {
         size_t m = all.count - t < OUT_BATCH ? all.count - t : OUT_BATCH;
         s = sink->emit(sink->user_data, all.tris + 3 * t, m);

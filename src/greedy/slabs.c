@@ -119,7 +119,7 @@ static tessel_status mesh_slab(const tsl_gp_slabs *s, const tessel_cloud *slab,
     mine.count = w;
     /* A point that lost some of its triangles keeps one fan (the front
      * cannot resume from two). */
-    st = tsl_single_fans(slab->count, mine.tris, &mine.count, touched);
+    st = tsl_single_fans(slab->count, mine.tris, &mine.count, touched, NULL, NULL);
     free(touched);
     for (size_t i = 0; i < 3 * mine.count; i++)
         mine.tris[i] += (uint32_t)s->np;
@@ -372,7 +372,7 @@ static tessel_status split(tsl_gp_slabs *s, const tessel_cloud *c, const uint32_
     for (size_t i = 0; i < n; i++)
         touched[i] &= (uint8_t)!frozen[i];
     if (!st)
-        st = tsl_single_fans(n, tri, &nt, touched);
+        st = tsl_single_fans(n, tri, &nt, touched, NULL, NULL);
     for (size_t i = 0; !st && i < 3 * nt; i++)
         keep[tri[i]] = 1;
     size_t np = 0;

@@ -596,7 +596,7 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     malloc_trim(0);
 #endif
     memcpy(seed, touched, n);
-    if ((st = tsl_single_fans(n, all->tris, &all->count, touched)) ||
+    if ((st = tsl_single_fans(n, all->tris, &all->count, touched, NULL, NULL)) ||
         (st = orient_tiles(cloud, all, &cut, reach, spacing, params->tile_points,
                                   params->threads, seed)))
         goto done;
@@ -610,7 +610,7 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
         st = TESSEL_ERR_NOMEM;
         goto done;
     }
-    tsl_open_fans(all->tris, all->count, n, open);
+    tsl_open_fans(all->tris, all->count, n, params->threads, open);
     for (size_t i = 0; i < n; i++) {
         sel[i] = cut.dcut[i] < reach;
         seed[i] |= open[i] != 0;

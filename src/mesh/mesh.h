@@ -85,7 +85,7 @@ void tsl_vertex_components(const uint32_t *tri, size_t nt, size_t nv, int thread
 /* sum[v] (nv entries) = the sum of mix(w) over v's outgoing edges v -> w
  * less the sum over its incoming ones (tsl_mix64, a bijection, wrapping):
  * 0 exactly when v's fan is closed, if every vertex has a single fan. */
-void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, uint64_t *sum);
+void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, int threads, uint64_t *sum);
 /* The connected components of a mesh (by shared vertices, which for
  * single fans is by edges, as tessel_mesh_check counts them) numbered
  * 0 .. *ncomp in the order of their first triangle: comp[t] for each of
@@ -278,8 +278,11 @@ double tsl_longest_edge2(const float *xyz, const uint32_t *tri, size_t nt, const
 /* Removes the triangles (tri[3 i ..], *count of them, consistently
  * oriented, over n vertices) at every vertex with more than one fan, until
  * none is left, keeping the rest in order; only vertices flagged in touched
- * (cleared on return) can have one (mesh/topology.c). */
-tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched);
+ * (cleared on return) can have one (mesh/topology.c). With gone, *gone
+ * receives the removed triangles (*ngone of them, in order; the caller
+ * frees it). */
+tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched,
+                              uint32_t **gone, size_t *ngone);
 
 /* ---- orientation check by ray parity (src/mesh/orient.c) ----
  * For the triangles tri[0 .. nt) over xyz (nv points): mark[t] = 1 for a

@@ -76,7 +76,8 @@ static bool several_fans(const uint32_t *tri, const uint32_t *c, size_t m)
     return border > 1;
 }
 
-tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched)
+tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *touched,
+                              uint32_t **gone, size_t *ngone)
 {
     size_t nt = *count, words = n / 64 + 1;
     uint8_t *flag = tsl_alloc_array(nt + 1, sizeof *flag);
@@ -175,12 +176,23 @@ tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *t
         later = swap;
         ntodo = next;
     }
-    size_t kept = 0;
-    for (size_t t = 0; t < nt; t++)
-        if (flag[t] & ALIVE) {
-            memmove(tri + 3 * kept, tri + 3 * t, 3 * sizeof *tri);
-            kept++;
+    size_t kept = 0, dropped = 0;
+    if (gone) {
+        for (size_t t = 0; t < nt; t++)
+            dropped += !(flag[t] & ALIVE);
+        if (!(*gone = tsl_alloc_array(3 * dropped + 1, sizeof **gone))) {
+            st = TESSEL_ERR_NOMEM;
+            goto done;
         }
+        *ngone = dropped;
+        dropped = 0;
+    }
+    for (size_t t = 0; t < nt; t++) {
+        if (flag[t] & ALIVE)
+            memmove(tri + 3 * kept++, tri + 3 * t, 3 * sizeof *tri);
+        else if (gone)
+            memcpy(*gone + 3 * dropped++, tri + 3 * t, 3 * sizeof *tri);
+    }
     *count = kept;
 done:
     free(flag);
@@ -280,13 +292,21 @@ tessel_status tsl_triangle_components(const uint32_t *tri, size_t nt, size_t nv,
     return TESSEL_OK;
 }
 
-void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, uint64_t *sum)
+void tsl_open_fans(const uint32_t *tri, size_t nt, size_t nv, int threads, uint64_t *sum)
 {
     memset(sum, 0, nv * sizeof *sum);
-    for (size_t t = 0; t < nt; t++)
-        for (int k = 0; k < 3; k++) {
-            uint32_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
-            sum[a] += tsl_mix64(b);
-            sum[b] -= tsl_mix64(a);
-        }
+    /* Wrapping sums: the same in any order. */
+#pragma omp parallel num_threads(tsl_threads(threads))
+    {
+        uint32_t lo, width;
+        tsl_thread_share(nv, &lo, &width);
+        for (size_t t = 0; t < nt; t++)
+            for (int k = 0; k < 3; k++) {
+                uint32_t a = tri[3 * t + (size_t)k], b = tri[3 * t + (size_t)(k + 1) % 3];
+                if (a - lo < width)
+                    sum[a] += tsl_mix64(b);
+                if (b - lo < width)
+                    sum[b] -= tsl_mix64(a);
+            }
+    }
 }
