@@ -2,7 +2,7 @@
  * count of the mesh (components, boundary edges, points by fate) that
  * decides whether a repair stays, with the fragments it drops
  * (docs/greedy.md, "Small holes" and "Fragments"; not in Gopi & Krishnan
- * 2002, whose front leaves such holes open). After a first count over the
+ * 2002). After a first count over the
  * whole mesh, a repair is counted around what it changed when that
  * provably leaves the components as they were: at 10^7 points each count
  * over the whole mesh took 0.4 s for a repair of a few hundred triangles. */
@@ -236,14 +236,6 @@ typedef struct repair {
     size_t ngone, nmade;
 } repair;
 
-/* Union-find over a repair's points. */
-static uint32_t find(uint32_t *parent, uint32_t x)
-{
-    while (parent[x] != x)
-        x = parent[x] = parent[parent[x]];
-    return x;
-}
-
 /* The repair's points by number (open addressing from point to number),
  * in two union-finds: `group` over the collar's triangles, `cluster` over
  * the removed ones. */
@@ -289,12 +281,8 @@ static void join_points(repair_points *p, uint32_t *parent, const uint32_t *v, b
         k3[k] = *id - 1;
         p->after[k3[k]] |= after;
     }
-    uint32_t a = find(parent, k3[0]);
-    for (int k = 1; k < 3; k++) {
-        uint32_t b = find(parent, k3[k]);
-        parent[a > b ? a : b] = a < b ? a : b;
-        a = a < b ? a : b;
-    }
+    tsl_uf_unite(parent, k3[0], k3[1]);
+    tsl_uf_unite(parent, k3[0], k3[2]);
 }
 
 static void repair_points_free(repair_points *p)
@@ -385,7 +373,8 @@ static bool same_components(repair_points *p, const repair *r, const gp_count *c
     for (size_t i = 0; i < p->count; i++) {
         if (!p->after[i])
             continue;
-        uint32_t g = find(p->group, (uint32_t)i), *via = &p->via[find(p->cluster, (uint32_t)i)];
+        uint32_t g = tsl_uf_find(p->group, (uint32_t)i);
+        uint32_t *via = &p->via[tsl_uf_find(p->cluster, (uint32_t)i)];
         if (*via == TESSEL_NONE)
             *via = g;
         if (*via != g)
@@ -399,10 +388,10 @@ static bool same_components(repair_points *p, const repair *r, const gp_count *c
             return false; /* joined */
     }
     for (size_t i = 0; i < p->count; i++)
-        if (p->after[i] && find(p->group, (uint32_t)i) == i && p->label[i] == TESSEL_NONE)
+        if (p->after[i] && tsl_uf_find(p->group, (uint32_t)i) == i && p->label[i] == TESSEL_NONE)
             return false; /* new triangles only */
     for (size_t t = 0; t < r->ngone; t++)
-        if (p->via[find(p->cluster, number_of(p, r->gone[3 * t]))] == TESSEL_NONE)
+        if (p->via[tsl_uf_find(p->cluster, number_of(p, r->gone[3 * t]))] == TESSEL_NONE)
             return false; /* emptied */
     return true;
 }
@@ -433,7 +422,7 @@ static comp_delta *comp_deltas(repair_points *p, const repair *r, const gp_count
 {
     size_t m = 0, k = 0;
     for (size_t i = 0; i < p->count; i++)
-        m += p->after[i] && find(p->group, (uint32_t)i) == i;
+        m += p->after[i] && tsl_uf_find(p->group, (uint32_t)i) == i;
     comp_delta *d = tsl_alloc_array(m + 1, sizeof *d);
     if (!d) {
         *st = TESSEL_ERR_NOMEM;
@@ -441,7 +430,7 @@ static comp_delta *comp_deltas(repair_points *p, const repair *r, const gp_count
     }
     m = 0;
     for (size_t i = 0; i < p->count; i++)
-        if (p->after[i] && find(p->group, (uint32_t)i) == i)
+        if (p->after[i] && tsl_uf_find(p->group, (uint32_t)i) == i)
             d[m++] = (comp_delta){p->label[i], 0};
     qsort(d, m, sizeof *d, cmp_comp);
     for (size_t i = 0; i < m; i++)
@@ -455,7 +444,7 @@ static comp_delta *comp_deltas(repair_points *p, const repair *r, const gp_count
             x->delta--;
     }
     for (size_t t = 0; ok && t < r->nmade; t++)
-        delta_of(d, k, p->label[find(p->group, number_of(p, r->made[3 * t]))])->delta++;
+        delta_of(d, k, p->label[tsl_uf_find(p->group, number_of(p, r->made[3 * t]))])->delta++;
     for (size_t i = 0; ok && i < k; i++)
         ok = (long)c->size[d[i].comp] + d[i].delta >= SPECK_GATE;
     if (!ok) {
@@ -524,7 +513,7 @@ static void count_repair(size_t n, const repair *r, const repair_points *p, cons
     /* The points the repair brings in join their group's component. */
     for (size_t i = 0; i < p->count; i++)
         if (p->after[i] && !p->before[i])
-            c->comp[p->point[i]] = p->label[find(p->group, (uint32_t)i)];
+            c->comp[p->point[i]] = p->label[tsl_uf_find(p->group, (uint32_t)i)];
     summary->boundary_edges += (size_t)boundary;
     summary->points_used += (size_t)count[FATE_USED];
     summary->left_duplicate += (size_t)count[FATE_DUPLICATE];
