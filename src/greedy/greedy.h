@@ -579,6 +579,7 @@ typedef struct gp_count {
     uint64_t *open;   /* per point: tsl_open_fans of the mesh */
     size_t ncomp;
     uint32_t most;    /* the largest component's triangles */
+    size_t local;     /* repairs counted around what they changed */
 } gp_count;
 void tsl_gp_count_free(gp_count *c);
 /* Drops the pieces of fewer than 64 triangles from a mesh that has one of

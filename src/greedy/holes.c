@@ -539,8 +539,10 @@ static tessel_status count_locally(size_t n, const gp_collect *all, const repair
     tessel_status st = gather_points(n, all, r, c, threads, p);
     if (!st && same_components(p, r, c))
         *d = comp_deltas(p, r, c, nd, &st);
-    if (*d)
+    if (*d) {
         count_repair(n, r, p, *d, *nd, sel, fate_before, fate, all->count, c, summary);
+        c->local++;
+    }
     return st;
 }
 
