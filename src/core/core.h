@@ -34,6 +34,12 @@ static inline void tsl_thread_share(size_t n, uint32_t *lo, uint32_t *width)
     *width = (uint32_t)(n * (me + 1) / parts) - *lo;
 }
 
+/* Bit v of a bit set of 64-bit words. */
+static inline bool tsl_bit(const uint64_t *bits, uint32_t v)
+{
+    return bits[v >> 6] >> (v & 63) & 1u;
+}
+
 #if defined(__GNUC__)
 #define TSL_PRINTF(a, b) __attribute__((format(printf, a, b)))
 #else

@@ -99,11 +99,6 @@ void tsl_gp_count_free(gp_count *c)
     memset(c, 0, sizeof *c);
 }
 
-static inline bool used_bit(const uint64_t *used, uint32_t v)
-{
-    return used[v >> 6] >> (v & 63) & 1;
-}
-
 /* used: the points on a triangle of tri (nt of them), each thread setting
  * the bits of its own words. */
 static void mark_used(const uint32_t *tri, size_t nt, size_t n, int threads, uint64_t *used)
@@ -123,23 +118,19 @@ static void mark_used(const uint32_t *tri, size_t nt, size_t n, int threads, uin
 }
 
 /* c->comp[v] for the used points (components numbered in the order of
- * their lowest point) and c->size[] their triangles, c->ncomp, c->most. */
+ * their lowest point) and c->size[] their triangles, c->ncomp, c->most.
+ * A component's root is its lowest point, so one pass in point order
+ * meets each root before the rest of its component. */
 static tessel_status label_components(const gp_collect *all, size_t n, int threads, gp_count *c)
 {
-    uint32_t *map = tsl_alloc_array(n + 1, sizeof *map);
-    if (!map)
-        return TESSEL_ERR_NOMEM;
     uint32_t *comp = c->comp;
     tsl_vertex_components(all->tris, all->count, n, threads, comp);
     c->ncomp = 0;
     for (size_t v = 0; v < n; v++)
-        if (comp[v] == v && used_bit(c->used, (uint32_t)v))
-            map[v] = (uint32_t)c->ncomp++;
-    ptrdiff_t nv = (ptrdiff_t)n, nt = (ptrdiff_t)all->count;
-#pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
-    for (ptrdiff_t v = 0; v < nv; v++)
-        comp[v] = used_bit(c->used, (uint32_t)v) ? map[comp[v]] : TESSEL_NONE;
-    free(map);
+        comp[v] = !tsl_bit(c->used, (uint32_t)v) ? TESSEL_NONE
+                  : comp[v] == v                 ? (uint32_t)c->ncomp++
+                                                 : comp[comp[v]];
+    ptrdiff_t nt = (ptrdiff_t)all->count;
     free(c->size);
     if (!(c->size = tsl_calloc_array(c->ncomp + 1, sizeof *c->size)))
         return TESSEL_ERR_NOMEM;
@@ -201,7 +192,7 @@ tessel_status tsl_gp_drop_specks_and_count(size_t n, gp_collect *all, uint8_t *f
 #pragma omp parallel for schedule(static) num_threads(tsl_threads(threads)) \
     reduction(+ : count[:FATE_UNTRIANGULATED + 1], boundary)
     for (ptrdiff_t i = 0; i < nv; i++) {
-        count[used_bit(c->used, (uint32_t)i) ? FATE_USED : fate[i]]++;
+        count[tsl_bit(c->used, (uint32_t)i) ? FATE_USED : fate[i]]++;
         boundary += c->open[i] != 0;
     }
     summary->boundary_edges = boundary;
@@ -276,7 +267,7 @@ static void join_points(repair_points *p, uint32_t *parent, const uint32_t *v, b
             p->point[i] = v[k];
             p->group[i] = p->cluster[i] = (uint32_t)i;
             p->after[i] = 0;
-            p->before[i] = used_bit(used, v[k]);
+            p->before[i] = tsl_bit(used, v[k]);
         }
         k3[k] = *id - 1;
         p->after[k3[k]] |= after;
@@ -308,7 +299,7 @@ static uint32_t *collar_of(const gp_collect *all, const uint64_t *mark, int thre
 #pragma omp parallel for schedule(static) reduction(+ : m) num_threads(tsl_threads(threads))
     for (ptrdiff_t t = 0; t < nt; t++) {
         const uint32_t *v = all->tris + 3 * t;
-        m += used_bit(mark, v[0]) || used_bit(mark, v[1]) || used_bit(mark, v[2]);
+        m += tsl_bit(mark, v[0]) || tsl_bit(mark, v[1]) || tsl_bit(mark, v[2]);
     }
     uint32_t *list = tsl_alloc_array(m + 1, sizeof *list);
     *count = m;
@@ -317,7 +308,7 @@ static uint32_t *collar_of(const gp_collect *all, const uint64_t *mark, int thre
 #pragma omp parallel for schedule(static) num_threads(tsl_threads(threads))
     for (ptrdiff_t t = 0; t < nt; t++) {
         const uint32_t *v = all->tris + 3 * t;
-        if (used_bit(mark, v[0]) || used_bit(mark, v[1]) || used_bit(mark, v[2]))
+        if (tsl_bit(mark, v[0]) || tsl_bit(mark, v[1]) || tsl_bit(mark, v[2]))
             list[__atomic_fetch_add(&at, 1, __ATOMIC_RELAXED)] = (uint32_t)t;
     }
     qsort(list, m, sizeof *list, tsl_cmp_u32);
@@ -495,7 +486,7 @@ static void count_repair(size_t n, const repair *r, const repair_points *p, cons
     long count[FATE_UNTRIANGULATED + 1] = {0}, boundary = 0;
     /* Points of the front's that are not the repair's keep their use. */
     for (size_t i = 0; i < n; i++)
-        if (sel[i] && number_of(p, (uint32_t)i) == TESSEL_NONE && !used_bit(c->used, (uint32_t)i)) {
+        if (sel[i] && number_of(p, (uint32_t)i) == TESSEL_NONE && !tsl_bit(c->used, (uint32_t)i)) {
             count[fate_before[i]]--;
             count[fate[i]]++;
         }

@@ -44,14 +44,13 @@ typedef struct fan_sub {
     size_t count, cap;
 } fan_sub;
 
-static bool bit(const uint64_t *bits, uint32_t v) { return bits[v >> 6] >> (v & 63) & 1u; }
 
 static tessel_status gather_stars(const uint32_t *tri, size_t nt, uint8_t *flag,
                                   const uint64_t *want, fan_sub *sub)
 {
     for (size_t t = 0; t < nt; t++) {
         const uint32_t *v = tri + 3 * t;
-        if ((flag[t] & IN_SUB) || !(bit(want, v[0]) || bit(want, v[1]) || bit(want, v[2])))
+        if ((flag[t] & IN_SUB) || !(tsl_bit(want, v[0]) || tsl_bit(want, v[1]) || tsl_bit(want, v[2])))
             continue;
         if (tsl_grow((void **)&sub->t, &sub->cap, sub->count + 1, sizeof *sub->t))
             return TESSEL_ERR_NOMEM;
@@ -107,7 +106,7 @@ tessel_status tsl_single_fans(size_t n, uint32_t *tri, size_t *count, uint8_t *t
         bool more = false;
         for (size_t q = 0; q < ntodo; q++) {
             uint32_t v = todo[q];
-            if (!bit(covered, v)) {
+            if (!tsl_bit(covered, v)) {
                 want[v >> 6] |= (uint64_t)1 << (v & 63);
                 covered[v >> 6] |= (uint64_t)1 << (v & 63);
                 more = true;
