@@ -58,6 +58,22 @@ TESSEL_API tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tess
                                                        const tessel_triangle_sink *sink,
                                                        tessel_recon_summary *summary);
 
+/* tessel_reconstruct_greedy_file (out of core, docs/outofcore.md) with each
+ * slab's tiles meshed by all processes of comm as tessel_mpi_reconstruct_greedy
+ * meshes a cloud's: process 0 reads in, sorts the points into slabs in its
+ * scratch folder, sends each slab's tile k to process k mod size, joins the
+ * tiles and the slabs, and writes out; the others hold only their tiles.
+ * Every process passes the same arguments; only process 0 uses the paths,
+ * and only its summary and diag are filled. out is the same bytes as
+ * tessel_reconstruct_greedy_file's for any number of processes. A failure
+ * on any process is returned on every process; no output or scratch file
+ * is left. */
+TESSEL_API tessel_status tessel_mpi_reconstruct_greedy_file(
+    MPI_Comm comm, const char *in, const char *out, const tessel_read_params *read_params,
+    const tessel_greedy_params *params, const tessel_write_params *write_params,
+    const tessel_outofcore_params *op, const tessel_callbacks *callbacks,
+    tessel_recon_summary *summary, tessel_diag *diag);
+
 /* tessel_reconstruct_smooth with the tiles of its advancing front
  * (params->front.tile_points) run by all processes of comm: process 0, which
  * alone holds the cloud (the others' may be empty), runs the pipeline and

@@ -174,11 +174,19 @@ int cli_greedy_option(void *ctx, int argc, char **argv, int *i);
 
 /* Out of core (tools/cmd_reconstruct_file.c): whether the cloud at in is
  * to be meshed out of core within o->ooc.memory (0: half the machine's
- * memory), judged by the file's size before reading it; and that run, with
- * its summary. Returns an exit code. */
+ * memory), judged by the file's size before reading it; and that run by
+ * mesh (tessel_reconstruct_greedy_file, or tessel-mpi's over its
+ * processes), with its summary. Returns an exit code. */
+typedef tessel_status (*cli_file_mesher)(const char *in, const char *out,
+                                         const tessel_read_params *read_params,
+                                         const tessel_greedy_params *params,
+                                         const tessel_write_params *write_params,
+                                         const tessel_outofcore_params *op,
+                                         const tessel_callbacks *callbacks,
+                                         tessel_recon_summary *summary, tessel_diag *diag);
 bool cli_outofcore_wanted(const char *in, const cli_greedy_opts *o);
 int cli_reconstruct_outofcore(const char *in, const char *out, const cli_greedy_opts *o,
-                              const cli_common *common);
+                              const cli_common *common, cli_file_mesher mesh);
 /* Parses a size in bytes: a number with an optional K, M, G or T suffix
  * (powers of 1024). Prints an error and returns false when it is not. */
 bool cli_parse_size(const char *opt, const char *text, uint64_t *out);

@@ -171,7 +171,7 @@ static int greedy(int argc, char **argv)
         return r == 0 ? CLI_OK : CLI_USAGE;
     cli_apply_threads(&common);
     if (cli_outofcore_wanted(in, &o))
-        return cli_reconstruct_outofcore(in, out, &o, &common);
+        return cli_reconstruct_outofcore(in, out, &o, &common, tessel_reconstruct_greedy_file);
 
     double t0 = cli_now();
     tessel_cloud cloud = {0};

@@ -53,7 +53,7 @@ bool cli_outofcore_wanted(const char *in, const cli_greedy_opts *o)
 }
 
 int cli_reconstruct_outofcore(const char *in, const char *out, const cli_greedy_opts *o,
-                              const cli_common *common)
+                              const cli_common *common, cli_file_mesher mesh)
 {
     double t0 = cli_now();
     tessel_read_params rp = cli_read_params(common);
@@ -68,7 +68,7 @@ int cli_reconstruct_outofcore(const char *in, const char *out, const cli_greedy_
     tessel_callbacks cb = cli_callbacks(&prog);
     tessel_recon_summary sum;
     tessel_diag diag = {0};
-    tessel_status st = tessel_reconstruct_greedy_file(in, out, &rp, &p, &wp, &op, &cb, &sum, &diag);
+    tessel_status st = mesh(in, out, &rp, &p, &wp, &op, &cb, &sum, &diag);
     cli_progress_done(&prog);
     if (st != TESSEL_OK) {
         if (st == TESSEL_ERR_CANCELLED)

@@ -551,15 +551,16 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
  * triangles use them, and the triangles not yet written, in the band's
  * numbering). */
 typedef struct tsl_gp_slabs {
-    int axis;            /* the axis the slabs are cut along */
-    double cut, reach;   /* the band's cut and the band's reach */
+    const tsl_gp_tile_runner *runner; /* who meshes a slab's tiles (NULL: threads) */
+    int axis;                         /* the axis the slabs are cut along */
+    double cut, reach;                /* the band's cut and the band's reach */
     size_t np, nt;
     float *xyz, *normals;
     uint32_t *gid, *tri;
     uint8_t *frozen;
 } tsl_gp_slabs;
 
-void tsl_gp_slabs_init(tsl_gp_slabs *s, int axis);
+void tsl_gp_slabs_init(tsl_gp_slabs *s, int axis, const tsl_gp_tile_runner *runner);
 void tsl_gp_slabs_free(tsl_gp_slabs *s);
 /* One slab: the points of slab (global ids gid) between cut and next_cut
  * along s->axis (INFINITY for the last slab) meshed and joined to the band;
@@ -627,6 +628,14 @@ tessel_status tsl_reconstruct_greedy_with(const tessel_cloud *cloud,
                                           const tessel_callbacks *callbacks,
                                           const tessel_triangle_sink *sink,
                                           tessel_recon_summary *summary);
+
+/* tessel_reconstruct_greedy_file (src/outofcore/outofcore.c) with each
+ * slab's tiles meshed by runner (NULL: this process's threads). */
+tessel_status tsl_reconstruct_greedy_file_with(
+    const char *in, const char *out, const tessel_read_params *read_params,
+    const tessel_greedy_params *params, const tessel_write_params *write_params,
+    const tessel_outofcore_params *op, const tsl_gp_tile_runner *runner,
+    const tessel_callbacks *callbacks, tessel_recon_summary *summary, tessel_diag *diag);
 
 /* ---- store.c ---- */
 

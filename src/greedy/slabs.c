@@ -22,10 +22,11 @@
 #define SWEEP_VOTE_REACH 4.0
 #define SWEEP_PAIR_REACH 4.0
 
-void tsl_gp_slabs_init(tsl_gp_slabs *s, int axis)
+void tsl_gp_slabs_init(tsl_gp_slabs *s, int axis, const tsl_gp_tile_runner *runner)
 {
     memset(s, 0, sizeof *s);
     s->axis = axis;
+    s->runner = runner;
 }
 
 static void free_band(tsl_gp_slabs *s)
@@ -87,8 +88,8 @@ static tessel_status mesh_slab(const tsl_gp_slabs *s, const tessel_cloud *slab,
     tessel_greedy_params p = *params;
     p.orient_check = 0;
     tessel_status st = slab->count < 3 ? TESSEL_OK
-                                       : tsl_reconstruct_greedy_with(slab, &p, NULL, callbacks,
-                                                                     &sink, sum);
+                                       : tsl_reconstruct_greedy_with(slab, &p, s->runner,
+                                                                     callbacks, &sink, sum);
     if (st == TESSEL_ERR_TOO_FEW_POINTS) /* a slab of duplicates: the band's front meshes it */
         st = TESSEL_OK;
     if (st) {

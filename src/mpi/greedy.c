@@ -3,7 +3,8 @@
  * each tile's points to process k mod size, which meshes the tile
  * (tsl_gp_tile_mesh_cloud) and sends back its triangles in the tile's
  * numbering; process 0 then closes the seams, checks the orientation and
- * flips the diagonals alone: the same bytes for any number of processes. */
+ * flips the diagonals alone: the same bytes for any number of processes.
+ * Out of core (src/outofcore/) the same runner meshes each slab's tiles. */
 #include "greedy/greedy.h"
 #include "mpi/mpi.h"
 #include "tessel_mpi.h"
@@ -268,5 +269,29 @@ tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *c
      * check and the flips (the mesh does not depend on it). */
     p.threads = r.last_threads;
     tessel_status st = tsl_reconstruct_greedy_with(cloud, &p, &runner, callbacks, sink, summary);
+    return tsl_mpi_done(&r, st);
+}
+
+tessel_status tessel_mpi_reconstruct_greedy_file(
+    MPI_Comm comm, const char *in, const char *out, const tessel_read_params *read_params,
+    const tessel_greedy_params *params, const tessel_write_params *write_params,
+    const tessel_outofcore_params *op, const tessel_callbacks *callbacks,
+    tessel_recon_summary *summary, tessel_diag *diag)
+{
+    tessel_greedy_params p = params ? *params : tessel_greedy_params_default();
+    ranks r = tsl_mpi_ranks(comm, p.threads);
+    if (r.rank != 0) {
+        if (summary)
+            memset(summary, 0, sizeof *summary);
+        if (diag)
+            memset(diag, 0, sizeof *diag);
+        return tsl_mpi_final(&r, tsl_mpi_serve(&r));
+    }
+    tsl_gp_tile_runner runner = {run_ranks, &r};
+    /* Between the slabs' tiles the others wait without a core, as in
+     * tessel_mpi_reconstruct_greedy. */
+    p.threads = r.last_threads;
+    tessel_status st = tsl_reconstruct_greedy_file_with(in, out, read_params, &p, write_params, op,
+                                                        &runner, callbacks, summary, diag);
     return tsl_mpi_done(&r, st);
 }

@@ -448,11 +448,11 @@ static int slab_progress_fn(void *data, const char *stage, double fraction)
 
 static tessel_status sweep(scratch *sc, const float *cuts, size_t slabs, int axis, int normals,
                            double offset[3], const tessel_greedy_params *params,
-                           const tessel_callbacks *cb, spool *sp, tessel_recon_summary *sum,
-                           tessel_diag *diag)
+                           const tsl_gp_tile_runner *runner, const tessel_callbacks *cb,
+                           spool *sp, tessel_recon_summary *sum, tessel_diag *diag)
 {
     tsl_gp_slabs band;
-    tsl_gp_slabs_init(&band, axis);
+    tsl_gp_slabs_init(&band, axis, runner);
     tessel_triangle_sink sink = {spool_emit, sp};
     slab_progress prog = {cb, 0, slabs, 0.0};
     tessel_callbacks inner = {slab_progress_fn, cb ? cb->log : NULL, &prog};
@@ -481,6 +481,16 @@ tessel_status tessel_reconstruct_greedy_file(const char *in, const char *out,
                                              const tessel_outofcore_params *op,
                                              const tessel_callbacks *callbacks,
                                              tessel_recon_summary *summary, tessel_diag *diag)
+{
+    return tsl_reconstruct_greedy_file_with(in, out, read_params, params, write_params, op, NULL,
+                                            callbacks, summary, diag);
+}
+
+tessel_status tsl_reconstruct_greedy_file_with(
+    const char *in, const char *out, const tessel_read_params *read_params,
+    const tessel_greedy_params *params, const tessel_write_params *write_params,
+    const tessel_outofcore_params *op, const tsl_gp_tile_runner *runner,
+    const tessel_callbacks *callbacks, tessel_recon_summary *summary, tessel_diag *diag)
 {
     double t0 = tsl_seconds();
     tessel_recon_summary sum;
@@ -590,8 +600,8 @@ tessel_status tessel_reconstruct_greedy_file(const char *in, const char *out,
         goto done;
     }
     sp.fp = sc.tris;
-    if ((st = sweep(&sc, cuts, slabs, axis, info.has_normals, sv.offset, &p, callbacks, &sp,
-                    &sum, diag)))
+    if ((st = sweep(&sc, cuts, slabs, axis, info.has_normals, sv.offset, &p, runner, callbacks,
+                    &sp, &sum, diag)))
         goto done;
     if (fflush(sc.tris) != 0) {
         tsl_diag_set(diag, sc.dir, 0, 0, 0, "cannot write a scratch file: %s", strerror(errno));

@@ -100,6 +100,27 @@ st=$?
 [ "$st" -eq 3 ] && grep -q "f.ply" "$work/err"
 check "the smooth method, an output that cannot be written: exit $st, named" $?
 
+# Out of core (--memory 1M: slabs of 1,000 points, each cut into tiles of
+# at most 256): each slab's tiles meshed by the processes, the same bytes,
+# no scratch file left.
+"$build/tessel" reconstruct "$cloud" "$work/ref.ply" --memory 1M --tile-points 256 --quiet
+for run in "1 1" "2 1" "3 2"; do
+    set -- $run
+    run_mpi "$1" reconstruct "$cloud" "$work/m.ply" --memory 1M --tile-points 256 \
+        --threads "$2" --json
+    st=$?
+    cmp -s "$work/ref.ply" "$work/m.ply" && grep -q '"out_of_core": true' "$work/out" &&
+        [ "$(grep -c '"tiles"' "$work/out")" -eq 1 ] && ! grep -q '"tiles": 0,' "$work/out"
+    check "-np $1 --threads $2, out of core in tiles: exit $st, the same bytes as tessel, one summary" \
+        $(( $? + st ))
+    rm -f "$work/m.ply"
+done
+run_mpi 2 reconstruct "$cloud" "$work/f.ply" --memory 1M --tile-points 256 \
+    --scratch "$work/no/such/dir"
+st=$?
+[ "$st" -ne 0 ] && grep -q "no/such/dir" "$work/err" && [ ! -e "$work/f.ply" ]
+check "out of core, a scratch folder that cannot be made: exit $st, named, no output" $?
+
 # One tile (the default tile size): every process meshes it whole.
 "$build/tessel" reconstruct "$cloud" "$work/one.ply" --method greedy --quiet
 run_mpi 3 reconstruct "$cloud" "$work/m.ply" --quiet

@@ -3,8 +3,9 @@
  * docs/mpi.md). The processes read the cloud in parts and share them;
  * process 0 writes the mesh;
  * the file is byte for byte what `tessel reconstruct IN OUT --method
- * greedy` writes with the same options, for any number of processes. A
- * failure anywhere stops every process and leaves no output. */
+ * greedy` writes with the same options, for any number of processes; out
+ * of core too (each slab's tiles over the processes). A failure anywhere
+ * stops every process and leaves no output. */
 #include "cli.h"
 #include "mpi/mpi.h"
 #include "tessel_mpi.h"
@@ -21,10 +22,13 @@ static const char help[] =
     "the processes on its machine (mpirun --bind-to none lets it use their\n"
     "cores) and writes OUT; the output is the same bytes for any N and any\n"
     "thread count. A cloud of at most --tile-points points is one tile: process 0\n"
-    "meshes it alone.\n\n"
+    "meshes it alone. A cloud too large for --memory (as tessel judges it) is\n"
+    "meshed out of core: process 0 sorts it into slabs in --scratch and sends\n"
+    "each slab's tiles to the processes; no process holds the whole cloud.\n\n"
     "Options (see tessel reconstruct --method greedy --help):\n"
     "  --mu M, --max-angle DEG, --min-angle DEG, --plane pca|axis,\n"
-    "  --max-spacing K, --no-flip, --tile-points N (default 262144), --ascii\n\n"
+    "  --max-spacing K, --no-flip, --tile-points N (default 262144), --ascii,\n"
+    "  --memory SIZE, --scratch DIR\n\n"
     "With --method smooth: the noisy-cloud pipeline (tessel reconstruct\n"
     "--method smooth --help for its options) with the tiles of its advancing\n"
     "front (--tile-points, default 65536) meshed by the N processes, the rest\n"
@@ -105,6 +109,17 @@ static int read_parts(void *unused, const char *path, tessel_cloud *cloud, const
     return rc;
 }
 
+/* Out of core, the slabs' tiles meshed by every process. */
+static tessel_status file_ranks(const char *in, const char *out, const tessel_read_params *rp,
+                                const tessel_greedy_params *params,
+                                const tessel_write_params *wp, const tessel_outofcore_params *op,
+                                const tessel_callbacks *callbacks, tessel_recon_summary *summary,
+                                tessel_diag *diag)
+{
+    return tessel_mpi_reconstruct_greedy_file(MPI_COMM_WORLD, in, out, rp, params, wp, op,
+                                              callbacks, summary, diag);
+}
+
 static tessel_status smooth_ranks(void *unused, const tessel_cloud *cloud,
                                   const tessel_smooth_recon_params *params,
                                   const tessel_callbacks *callbacks, tessel_mesh *mesh,
@@ -140,6 +155,7 @@ static int reconstruct(int argc, char **argv, int rank, int procs)
     cli_greedy_opts o;
     memset(&o, 0, sizeof o);
     o.p = tessel_greedy_params_default();
+    o.ooc = tessel_outofcore_params_default();
     const char *in = NULL, *out = NULL;
     /* Every process parses the same command line; only process 0 talks. */
     if (rank != 0 && !freopen("/dev/null", "w", stderr))
@@ -151,9 +167,16 @@ static int reconstruct(int argc, char **argv, int rank, int procs)
         cli_error("--stream writes as the front goes, one process alone: use tessel");
         return CLI_USAGE;
     }
-    if (rank != 0)
+    if (rank != 0) {
         common.quiet = true;
+        common.json = false;
+    }
     cli_apply_threads(&common);
+    /* Process 0's file and memory decide, as tessel's would. */
+    int outofcore = rank == 0 && cli_outofcore_wanted(in, &o);
+    MPI_Bcast(&outofcore, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (outofcore)
+        return cli_reconstruct_outofcore(in, out, &o, &common, file_ranks);
     double t0 = cli_now();
     tessel_cloud cloud = {0};
     int rc = read_parts(NULL, in, &cloud, "a surface", &common);
