@@ -8,8 +8,9 @@
 // neighbours (NormalEstimation, kd-tree), search radius 5 times the mean
 // spacing, mu 2.5, and PCL's documented example values for the rest
 // (100 nearest neighbours, maximum surface angle 45 degrees, angles 10 and
-// 120 degrees, no normal consistency). Both run on one core; triangles are
-// counted, not written. Prints the time of each, PCL with and without its
+// 120 degrees, no normal consistency). PCL runs on one core (GP3 has no
+// threads), tessel with its defaults (every core); triangles are counted,
+// not written. Prints the time of each, PCL with and without its
 // normal estimation, and the ratio (PCL total / tessel), by the wall clock
 // and by the process CPU time.
 //
