@@ -482,6 +482,21 @@ tessel_status tsl_gp_front_over(const tessel_cloud *cloud, const uint32_t *ids, 
                                 gp_collect *more, uint8_t *fate, uint8_t *made,
                                 tessel_recon_summary *sum);
 
+/* tsl_gp_front_over's front on the points' own cloud lc (at least 3
+ * points): inside and frozen by index into lc, the triangles appended to
+ * more in lc's indices, each point's fate in fate[0 .. lc->count). What
+ * another process runs for a seam's group (src/mpi/). */
+tessel_status tsl_gp_front_local(const tessel_cloud *lc, const uint32_t *inside, size_t ninside,
+                                 const uint8_t *frozen, const tessel_greedy_params *params,
+                                 bool grow_only, const char *stage,
+                                 const tessel_callbacks *callbacks, gp_collect *more,
+                                 uint8_t *fate, tessel_recon_summary *sum);
+/* A local front's results back in the cloud's indices: more's triangles
+ * (from indices into ids) and their vertices flagged in made, fate[ids[j]]
+ * = lfate[j]. */
+void tsl_gp_front_back(const uint32_t *ids, size_t m, const uint8_t *lfate, gp_collect *more,
+                       uint8_t *fate, uint8_t *made);
+
 /* A front over the points flagged in sel only (params checked; mu as
  * given), from the triangles of all among them (points with a triangle
  * beyond are frozen); its triangles appended to all and their vertices
@@ -507,11 +522,44 @@ typedef struct tsl_gp_tiles_job {
     uint8_t *fate; /* per point of cloud: each tile writes its own points' */
 } tsl_gp_tiles_job;
 
-/* Who meshes the tiles: NULL, this process's threads; the MPI runner
- * (src/mpi/) spreads them over processes and shares the results. A tile's
- * triangles depend on the tile alone, so any runner gives the same mesh. */
+/* One group of a level of seams (tiles.c): its points (the cloud's
+ * indices), the triangles among them that resume its front (indices into
+ * ids), and what its front gives: new triangles in the cloud's indices,
+ * its summary and status. */
+typedef struct gp_seam_group {
+    const uint32_t *ids;
+    size_t m;
+    uint32_t *inside;
+    size_t ninside, cap_inside;
+    gp_collect more;
+    tessel_recon_summary sum;
+    tessel_status st;
+} gp_seam_group;
+
+/* The groups of one level of seams, whose fronts do not meet: each a front
+ * over its points (tsl_gp_front_over, growing from inside only) with the
+ * seams' params; frozen by the cloud's index (taking no new triangle);
+ * fate and made written at each group's points. */
+typedef struct tsl_gp_seams_job {
+    const tessel_cloud *cloud;
+    const tessel_greedy_params *params;
+    gp_seam_group *groups;
+    size_t count;
+    const uint8_t *frozen;
+    uint8_t *fate, *made;
+    const tessel_callbacks *callbacks; /* progress, on the calling thread */
+} tsl_gp_seams_job;
+
+/* Group i of job on the calling thread: its more, sum and st. */
+void tsl_gp_seam_group_run(const tsl_gp_seams_job *job, size_t i, const tessel_callbacks *cb);
+
+/* Who meshes the tiles and the seams' groups: NULL, this process's
+ * threads; the MPI runner (src/mpi/) spreads them over processes and
+ * shares the results. A tile's triangles depend on the tile alone, a
+ * group's on the group alone, so any runner gives the same mesh. */
 typedef struct tsl_gp_tile_runner {
     tessel_status (*run)(void *ctx, const tsl_gp_tiles_job *job);
+    tessel_status (*seams)(void *ctx, const tsl_gp_seams_job *job); /* NULL: the threads */
     void *ctx;
 } tsl_gp_tile_runner;
 

@@ -145,6 +145,22 @@ tessel_status tsl_gp_subcloud(const tessel_cloud *cloud, const uint32_t *ids, si
     return TESSEL_OK;
 }
 
+tessel_status tsl_gp_front_local(const tessel_cloud *lc, const uint32_t *inside, size_t ninside,
+                                 const uint8_t *frozen, const tessel_greedy_params *params,
+                                 bool grow_only, const char *stage,
+                                 const tessel_callbacks *callbacks, gp_collect *more,
+                                 uint8_t *fate, tessel_recon_summary *sum)
+{
+    tessel_greedy_params lp = *params;
+    lp.tile_points = 0;
+    lp.existing = inside;
+    lp.existing_count = ninside;
+    lp.frozen = frozen;
+    tessel_triangle_sink hold = {tsl_gp_collect_emit, more};
+    return grow_only ? tsl_gp_grow(lc, &lp, stage, callbacks, &hold, fate, sum)
+                     : tsl_gp_pass(lc, &lp, stage, callbacks, &hold, fate, sum);
+}
+
 tessel_status tsl_gp_front_over(const tessel_cloud *cloud, const uint32_t *ids, size_t m,
                                 const uint32_t *inside, size_t ninside, const uint8_t *frozen,
                                 const tessel_greedy_params *params, bool grow_only,
@@ -159,28 +175,26 @@ tessel_status tsl_gp_front_over(const tessel_cloud *cloud, const uint32_t *ids, 
     if (st)
         return st;
     uint8_t *lfate = tsl_alloc_array(m, 1);
-    if (!lfate)
-        st = TESSEL_ERR_NOMEM;
-    if (!st) {
-        tessel_greedy_params lp = *params;
-        lp.tile_points = 0;
-        lp.existing = inside;
-        lp.existing_count = ninside;
-        lp.frozen = frozen;
-        tessel_triangle_sink hold = {tsl_gp_collect_emit, more};
-        st = grow_only ? tsl_gp_grow(&lc, &lp, stage, callbacks, &hold, lfate, sum)
-                       : tsl_gp_pass(&lc, &lp, stage, callbacks, &hold, lfate, sum);
-    }
-    for (size_t i = 0; !st && i < 3 * more->count; i++) {
+    st = lfate ? tsl_gp_front_local(&lc, inside, ninside, frozen, params, grow_only, stage,
+                                    callbacks, more, lfate, sum)
+               : TESSEL_ERR_NOMEM;
+    if (!st)
+        tsl_gp_front_back(ids, m, lfate, more, fate, made);
+    tessel_cloud_free(&lc);
+    free(lfate);
+    return st;
+}
+
+void tsl_gp_front_back(const uint32_t *ids, size_t m, const uint8_t *lfate, gp_collect *more,
+                       uint8_t *fate, uint8_t *made)
+{
+    for (size_t i = 0; i < 3 * more->count; i++) {
         uint32_t w = ids[more->tris[i]];
         more->tris[i] = w;
         made[w] = 1;
     }
-    for (size_t j = 0; !st && j < m; j++)
+    for (size_t j = 0; j < m; j++)
         fate[ids[j]] = lfate[j];
-    tessel_cloud_free(&lc);
-    free(lfate);
-    return st;
 }
 
 tessel_status tsl_gp_local_pass(const tessel_cloud *cloud, const uint8_t *sel,

@@ -142,31 +142,40 @@ static tessel_status id_push(id_list *l, uint32_t x)
     return TESSEL_OK;
 }
 
-typedef struct seam_group {
-    const uint32_t *ids; /* its points */
-    size_t m;
-    uint32_t *inside;    /* the triangles among them (indices into ids) */
-    size_t ninside, cap_inside;
-    gp_collect more;     /* its new triangles, in the cloud's indices */
-    tessel_recon_summary sum;
-    tessel_status st;
-} seam_group;
-
-/* One group's front, grown from the triangles among its points; the
- * points flagged in frozen[] (by cloud index) take no new triangle. */
-static tessel_status seam_front(const tessel_cloud *cloud, const tessel_greedy_params *params,
-                                seam_group *g, const uint8_t *frozen, uint8_t *fate, uint8_t *made,
-                                const tessel_callbacks *cb)
+void tsl_gp_seam_group_run(const tsl_gp_seams_job *job, size_t i, const tessel_callbacks *cb)
 {
+    gp_seam_group *g = &job->groups[i];
     size_t m = g->m;
     uint8_t *fr = tsl_alloc_array(m + 1, 1);
-    if (!fr)
-        return TESSEL_ERR_NOMEM;
+    if (!fr) {
+        g->st = TESSEL_ERR_NOMEM;
+        return;
+    }
     for (size_t j = 0; j < m; j++)
-        fr[j] = frozen[g->ids[j]];
-    tessel_status st = tsl_gp_front_over(cloud, g->ids, m, g->inside, g->ninside, fr, params, true,
-                                         "greedy: seams", cb, &g->more, fate, made, &g->sum);
+        fr[j] = job->frozen[g->ids[j]];
+    g->st = tsl_gp_front_over(job->cloud, g->ids, m, g->inside, g->ninside, fr, job->params, true,
+                              "greedy: seams", cb, &g->more, job->fate, job->made, &g->sum);
     free(fr);
+}
+
+/* The default runner of a level's groups: this process's threads, progress
+ * reported by the calling thread. */
+static tessel_status seams_on_threads(const tsl_gp_seams_job *job, double done, double share)
+{
+    atomic_int cancel, finished;
+    atomic_init(&cancel, 0);
+    atomic_init(&finished, 0);
+    part_ctx ctx = {job->callbacks, "greedy: seams", done, share, job->count, &finished, &cancel};
+    tessel_callbacks cb = {part_progress, NULL, &ctx};
+    long long count = (long long)job->count;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(job->params->threads))
+    for (long long ii = 0; ii < count; ii++) {
+        tsl_gp_seam_group_run(job, (size_t)ii, &cb);
+        atomic_fetch_add(&finished, 1);
+    }
+    tessel_status st = TESSEL_OK;
+    for (size_t i = 0; i < job->count && !st; i++)
+        st = job->groups[i].st;
     return st;
 }
 
@@ -220,6 +229,7 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
                                 const uint32_t *group, const uint32_t *selected, size_t nsel,
                                 int level, double near, double edge,
                                 const tessel_greedy_params *params,
+                                const tsl_gp_tile_runner *runner,
                                 const tessel_callbacks *callbacks, double done, double share,
                                 gp_collect *all, id_list *list, uint32_t *slot, uint32_t *local,
                                 uint8_t *frozen, uint8_t *fate, uint8_t *made,
@@ -232,7 +242,7 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
     for (size_t v = 0; v < nodes; v++)
         gid[v] = cut->node[v].depth == level ? (uint32_t)ng++ : TESSEL_NONE;
     size_t *count = tsl_calloc_array(ng + 1, sizeof *count);
-    seam_group *g = tsl_calloc_array(ng + 1, sizeof *g);
+    gp_seam_group *g = tsl_calloc_array(ng + 1, sizeof *g);
     id_list pts = {NULL, 0, 0};
     uint32_t *ids = NULL;
     tessel_status st = count && g ? TESSEL_OK : TESSEL_ERR_NOMEM;
@@ -269,7 +279,7 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
     for (size_t i = 0, at = 0; !st && i < ng; at += count[i], i++)
         g[i].ids = ids + at;
     for (size_t i = 0; !st && i < pts.count; i++) {
-        seam_group *x = &g[slot[pts.id[i]]];
+        gp_seam_group *x = &g[slot[pts.id[i]]];
         ids[(size_t)(x->ids - ids) + x->m++] = pts.id[i];
     }
     /* The triangles among a group's points resume its front; a point with
@@ -284,7 +294,7 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
                     frozen[v[c]] = 1;
             continue;
         }
-        seam_group *x = &g[s0];
+        gp_seam_group *x = &g[s0];
         if (tsl_grow((void **)&x->inside, &x->cap_inside, x->ninside + 1,
                      3 * sizeof *x->inside)) {
             st = TESSEL_ERR_NOMEM;
@@ -295,19 +305,9 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
         x->ninside++;
     }
     if (!st) {
-        atomic_int cancel, finished;
-        atomic_init(&cancel, 0);
-        atomic_init(&finished, 0);
-        part_ctx ctx = {callbacks, "greedy: seams", done, share, ng, &finished, &cancel};
-        tessel_callbacks cb = {part_progress, NULL, &ctx};
-        long long count_g = (long long)ng;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(params->threads))
-        for (long long ii = 0; ii < count_g; ii++) {
-            g[ii].st = seam_front(cloud, params, &g[ii], frozen, fate, made, &cb);
-            atomic_fetch_add(&finished, 1);
-        }
-        for (size_t i = 0; i < ng && !st; i++)
-            st = g[i].st;
+        tsl_gp_seams_job job = {cloud, params, g, ng, frozen, fate, made, callbacks};
+        st = runner && runner->seams ? runner->seams(runner->ctx, &job)
+                                     : seams_on_threads(&job, done, share);
     }
     /* The new triangles in the order of the groups. */
     for (size_t i = 0; !st && i < ng; i++) {
@@ -340,6 +340,7 @@ static tessel_status seam_level(const tessel_cloud *cloud, const tsl_tiles *cut,
 static tessel_status close_seams(const tessel_cloud *cloud, const tsl_tiles *cut,
                                  const uint8_t *sel, double reach,
                                  const tessel_greedy_params *params,
+                                 const tsl_gp_tile_runner *runner,
                                  const tessel_callbacks *callbacks, gp_collect *all, uint8_t *fate,
                                  uint8_t *made, tessel_recon_summary *summary)
 {
@@ -383,7 +384,7 @@ static tessel_status close_seams(const tessel_cloud *cloud, const tsl_tiles *cut
     for (int level = deepest; !st && level >= 0; level--)
         st = seam_level(cloud, cut, group, selected, nsel, level,
                         (SEAM_GROUP + TILE_CONTEXT) * reach, (SEAM_GROUP + 1.0) * reach, params,
-                        callbacks, share * (double)(deepest - level), share, all, &list, slot,
+                        runner, callbacks, share * (double)(deepest - level), share, all, &list, slot,
                         local, frozen, fate, made, summary);
     /* What the fronts could not reach from the triangles around it: one
      * front over it and its surroundings, which may seed. */
@@ -632,7 +633,7 @@ tessel_status tsl_gp_tiled_pass(const tessel_cloud *cloud, const tessel_greedy_p
     }
     summary->mu = mu;
     summary->tiles = nt;
-    st = close_seams(cloud, &cut, sel, reach, &sp, callbacks, all, fate, dirty, summary);
+    st = close_seams(cloud, &cut, sel, reach, &sp, runner, callbacks, all, fate, dirty, summary);
 done:
     free_tiles(&cut, parts, sums);
     free(touched);

@@ -140,8 +140,9 @@ tessel_status tsl_mpi_serve(const ranks *r)
             return (tessel_status)h.status;
         if (h.status != TESSEL_OK)
             continue;
-        (void)(h.kind == TILES_GREEDY ? tsl_mpi_serve_greedy(r, &h)
-                                      : tsl_mpi_serve_front(r, &h));
+        (void)(h.kind == TILES_GREEDY  ? tsl_mpi_serve_greedy(r, &h)
+               : h.kind == TILES_SEAMS ? tsl_mpi_serve_seams(r, &h)
+                                       : tsl_mpi_serve_front(r, &h));
     }
 }
 

@@ -252,6 +252,286 @@ tessel_status tsl_mpi_serve_greedy(const ranks *r, const tiles_head *head)
     return st;
 }
 
+/* ---- the seams: each level's groups as the tiles ---- */
+
+/* Sizes of a level's groups for all: its points and its triangles that
+ * resume the front, in turn (process 0 passes the job, the others NULL). */
+static tessel_status bcast_group_sizes(const ranks *r, size_t count, const tsl_gp_seams_job *job,
+                                       uint64_t **sizes)
+{
+    size_t *from = NULL;
+    if (job) {
+        from = tsl_alloc_array(2 * count + 1, sizeof *from);
+        for (size_t i = 0; from && i < count; i++) {
+            from[2 * i] = job->groups[i].m;
+            from[2 * i + 1] = job->groups[i].ninside;
+        }
+        if (from)
+            from[2 * count] = 0;
+    }
+    tessel_status st = tsl_mpi_agree(r->comm, !job || from ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    if (st == TESSEL_OK)
+        st = tsl_mpi_bcast_sizes(r, 2 * count, from, sizes);
+    free(from);
+    return st;
+}
+
+/* Whether group i goes to another process: its own, and a front to run
+ * (tsl_gp_front_over makes nothing of fewer than 3 points). */
+static bool remote_group(const ranks *r, const uint64_t *sizes, size_t i)
+{
+    return tsl_mpi_owner(r, i) != 0 && sizes[2 * i] >= 3;
+}
+
+static tessel_status seam_one(const void *job, size_t i)
+{
+    const tsl_gp_seams_job *j = job;
+    tsl_gp_seam_group_run(j, i, NULL);
+    return j->groups[i].st;
+}
+
+/* The other processes' groups out: points (and normals), the triangles
+ * that resume the front, the frozen flags. */
+static tessel_status send_groups(const ranks *r, const tsl_gp_seams_job *job,
+                                 const uint64_t *sizes)
+{
+    size_t most = 0;
+    for (size_t i = 0; i < job->count; i++)
+        most = job->groups[i].m > most ? job->groups[i].m : most;
+    float *buf = tsl_alloc_array(3 * most + 1, sizeof *buf);
+    uint8_t *fr = tsl_alloc_array(most + 1, 1);
+    tessel_status st = tsl_mpi_agree(r->comm, buf && fr ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    const tessel_cloud *c = job->cloud;
+    for (size_t i = 0; st == TESSEL_OK && i < job->count; i++) {
+        if (!remote_group(r, sizes, i))
+            continue;
+        const gp_seam_group *g = &job->groups[i];
+        int to = tsl_mpi_owner(r, i);
+        for (int block = 0; block < 1 + (c->normals != NULL); block++) {
+            const float *src = block ? c->normals : c->xyz;
+            for (size_t j = 0; j < g->m; j++)
+                memcpy(buf + 3 * j, src + 3 * (size_t)g->ids[j], 3 * sizeof *buf);
+            tsl_mpi_move(r->comm, 0, to, buf, 3 * g->m, MPI_FLOAT, sizeof *buf);
+        }
+        tsl_mpi_move(r->comm, 0, to, g->inside, 3 * g->ninside, MPI_UINT32_T, sizeof *g->inside);
+        for (size_t j = 0; j < g->m; j++)
+            fr[j] = job->frozen[g->ids[j]];
+        tsl_mpi_move(r->comm, 0, to, fr, g->m, MPI_BYTE, 1);
+    }
+    free(buf);
+    free(fr);
+    return st;
+}
+
+/* The other processes' groups back: triangles, summaries and fates, put
+ * in the cloud's indices as a front over the whole cloud leaves them. */
+static tessel_status receive_groups(const ranks *r, const tsl_gp_seams_job *job,
+                                    const uint64_t *sizes)
+{
+    size_t ng = job->count, most = 0;
+    uint64_t *counts = tsl_calloc_array(ng + 1, sizeof *counts);
+    tessel_status st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    if (st != TESSEL_OK) {
+        free(counts);
+        return st;
+    }
+    tsl_mpi_sum_counts(r, counts, ng);
+    tessel_status mine = TESSEL_OK;
+    for (size_t i = 0; i < ng && mine == TESSEL_OK; i++) {
+        gp_seam_group *g = &job->groups[i];
+        most = g->m > most ? g->m : most;
+        if (!remote_group(r, sizes, i) || !counts[i])
+            continue;
+        if (tsl_grow((void **)&g->more.tris, &g->more.cap, (size_t)counts[i],
+                     3 * sizeof *g->more.tris))
+            mine = TESSEL_ERR_NOMEM;
+        g->more.count = (size_t)counts[i];
+    }
+    free(counts);
+    uint8_t *fate = mine == TESSEL_OK ? tsl_alloc_array(most + 1, 1) : NULL;
+    if ((st = tsl_mpi_agree(r->comm, fate ? TESSEL_OK : TESSEL_ERR_NOMEM)) != TESSEL_OK) {
+        free(fate);
+        return st;
+    }
+    for (size_t i = 0; i < ng; i++) {
+        if (!remote_group(r, sizes, i))
+            continue;
+        gp_seam_group *g = &job->groups[i];
+        int from = tsl_mpi_owner(r, i);
+        tsl_mpi_move(r->comm, from, 0, g->more.tris, 3 * g->more.count, MPI_UINT32_T,
+                     sizeof *g->more.tris);
+        tsl_mpi_move(r->comm, from, 0, &g->sum, sizeof g->sum, MPI_BYTE, 1);
+        tsl_mpi_move(r->comm, from, 0, fate, g->m, MPI_BYTE, 1);
+        tsl_gp_front_back(g->ids, g->m, fate, &g->more, job->fate, job->made);
+    }
+    free(fate);
+    return TESSEL_OK;
+}
+
+/* Process 0's runner of a level's groups: group i by process i mod size,
+ * as the tiles. */
+static tessel_status run_seams(void *ctx, const tsl_gp_seams_job *job)
+{
+    const ranks *r = ctx;
+    const tessel_cloud *c = job->cloud;
+    tiles_head h = {.status = TESSEL_OK, .kind = TILES_SEAMS, .normals = c->normals != NULL,
+                    .has_viewpoint = c->has_viewpoint, .count = job->count};
+    memcpy(h.offset, c->offset, sizeof h.offset);
+    memcpy(h.viewpoint, c->viewpoint, sizeof h.viewpoint);
+    tsl_mpi_head(r, h);
+    tessel_greedy_params sp = *job->params;
+    MPI_Bcast(&sp, (int)sizeof sp, MPI_BYTE, 0, r->comm);
+    uint64_t *sizes = NULL;
+    tessel_status st = bcast_group_sizes(r, job->count, job, &sizes);
+    if (st == TESSEL_OK)
+        st = send_groups(r, job, sizes);
+    if (st == TESSEL_OK)
+        st = tsl_mpi_agree(r->comm, tsl_mpi_each_mine(r, job->count, seam_one, job));
+    if (st == TESSEL_OK)
+        st = receive_groups(r, job, sizes);
+    free(sizes);
+    return st;
+}
+
+/* A process's own groups of a level: their points as received, what their
+ * fronts give. */
+typedef struct own_groups {
+    size_t count;
+    size_t *i;            /* their numbers */
+    tessel_cloud *cloud;  /* their points */
+    uint32_t **inside;
+    uint8_t **frozen, **fate;
+    gp_collect *more;
+    tessel_recon_summary *sums;
+} own_groups;
+
+static void groups_free(own_groups *o)
+{
+    for (size_t j = 0; j < o->count; j++) {
+        if (o->cloud)
+            tessel_cloud_free(&o->cloud[j]);
+        if (o->inside)
+            free(o->inside[j]);
+        if (o->frozen)
+            free(o->frozen[j]);
+        if (o->fate)
+            free(o->fate[j]);
+        if (o->more)
+            free(o->more[j].tris);
+    }
+    free(o->i);
+    free(o->cloud);
+    free(o->inside);
+    free(o->frozen);
+    free(o->fate);
+    free(o->more);
+    free(o->sums);
+    memset(o, 0, sizeof *o);
+}
+
+static tessel_status groups_alloc(const ranks *r, const tiles_head *h, const uint64_t *sizes,
+                                  own_groups *o)
+{
+    size_t ng = (size_t)h->count;
+    for (size_t i = 0; i < ng; i++)
+        o->count += tsl_mpi_owner(r, i) == r->rank && remote_group(r, sizes, i);
+    size_t n = o->count + 1;
+    o->i = tsl_calloc_array(n, sizeof *o->i);
+    o->cloud = tsl_calloc_array(n, sizeof *o->cloud);
+    o->inside = tsl_calloc_array(n, sizeof *o->inside);
+    o->frozen = tsl_calloc_array(n, sizeof *o->frozen);
+    o->fate = tsl_calloc_array(n, sizeof *o->fate);
+    o->more = tsl_calloc_array(n, sizeof *o->more);
+    o->sums = tsl_calloc_array(n, sizeof *o->sums);
+    if (!o->i || !o->cloud || !o->inside || !o->frozen || !o->fate || !o->more || !o->sums)
+        return TESSEL_ERR_NOMEM;
+    for (size_t i = 0, j = 0; i < ng; i++) {
+        if (tsl_mpi_owner(r, i) != r->rank || !remote_group(r, sizes, i))
+            continue;
+        size_t m = (size_t)sizes[2 * i], ni = (size_t)sizes[2 * i + 1];
+        tessel_cloud *c = &o->cloud[j];
+        o->i[j] = i;
+        if (tessel_cloud_alloc(c, m, h->normals, 0) != TESSEL_OK ||
+            !(o->inside[j] = tsl_alloc_array(3 * ni + 1, sizeof **o->inside)) ||
+            !(o->frozen[j] = tsl_alloc_array(m, 1)) || !(o->fate[j] = tsl_alloc_array(m, 1)))
+            return TESSEL_ERR_NOMEM;
+        memcpy(c->offset, h->offset, sizeof c->offset);
+        memcpy(c->viewpoint, h->viewpoint, sizeof c->viewpoint);
+        c->has_viewpoint = h->has_viewpoint;
+        j++;
+    }
+    return TESSEL_OK;
+}
+
+static tessel_status groups_run(const ranks *r, const tessel_greedy_params *params,
+                                const uint64_t *sizes, own_groups *o)
+{
+    tessel_status *status = tsl_alloc_array(o->count + 1, sizeof *status);
+    if (!status)
+        return TESSEL_ERR_NOMEM;
+    long long count = (long long)o->count;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
+    for (long long jj = 0; jj < count; jj++) {
+        size_t j = (size_t)jj, ni = (size_t)sizes[2 * o->i[j] + 1];
+        status[j] = tsl_gp_front_local(&o->cloud[j], o->inside[j], ni, o->frozen[j], params, true,
+                                       "greedy: seams", NULL, &o->more[j], o->fate[j],
+                                       &o->sums[j]);
+        tessel_cloud_free(&o->cloud[j]);
+    }
+    tessel_status st = TESSEL_OK;
+    for (size_t j = 0; j < o->count && !st; j++)
+        st = status[j];
+    free(status);
+    return st;
+}
+
+/* A process other than 0: its groups of a level in, their fronts run, the
+ * results out (the other side of run_seams). */
+tessel_status tsl_mpi_serve_seams(const ranks *r, const tiles_head *head)
+{
+    tessel_greedy_params params;
+    MPI_Bcast(&params, (int)sizeof params, MPI_BYTE, 0, r->comm);
+    params.existing = NULL; /* process 0's pointers */
+    params.frozen = NULL;
+    size_t ng = (size_t)head->count;
+    uint64_t *sizes = NULL, *counts = NULL;
+    own_groups o = {0};
+    tessel_status st = bcast_group_sizes(r, ng, NULL, &sizes);
+    if (st == TESSEL_OK) /* send_groups' agreement */
+        st = tsl_mpi_agree(r->comm, groups_alloc(r, head, sizes, &o));
+    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
+        size_t m = (size_t)sizes[2 * o.i[j]], ni = (size_t)sizes[2 * o.i[j] + 1];
+        tsl_mpi_move(r->comm, 0, r->rank, o.cloud[j].xyz, 3 * m, MPI_FLOAT, sizeof(float));
+        if (head->normals)
+            tsl_mpi_move(r->comm, 0, r->rank, o.cloud[j].normals, 3 * m, MPI_FLOAT,
+                         sizeof(float));
+        tsl_mpi_move(r->comm, 0, r->rank, o.inside[j], 3 * ni, MPI_UINT32_T, sizeof(uint32_t));
+        tsl_mpi_move(r->comm, 0, r->rank, o.frozen[j], m, MPI_BYTE, 1);
+    }
+    if (st == TESSEL_OK)
+        st = tsl_mpi_agree(r->comm, groups_run(r, &params, sizes, &o));
+    if (st == TESSEL_OK) { /* receive_groups' counts */
+        counts = tsl_calloc_array(ng + 1, sizeof *counts);
+        st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    }
+    if (st == TESSEL_OK) {
+        for (size_t j = 0; j < o.count; j++)
+            counts[o.i[j]] = o.more[j].count;
+        tsl_mpi_sum_counts(r, counts, ng);
+        st = tsl_mpi_agree(r->comm, TESSEL_OK); /* receive_groups' room */
+    }
+    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
+        size_t m = (size_t)sizes[2 * o.i[j]];
+        tsl_mpi_move(r->comm, r->rank, 0, o.more[j].tris, 3 * o.more[j].count, MPI_UINT32_T,
+                     sizeof(uint32_t));
+        tsl_mpi_move(r->comm, r->rank, 0, &o.sums[j], sizeof o.sums[j], MPI_BYTE, 1);
+        tsl_mpi_move(r->comm, r->rank, 0, o.fate[j], m, MPI_BYTE, 1);
+    }
+    free(counts);
+    free(sizes);
+    groups_free(&o);
+    return st;
+}
 
 tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *cloud,
                                             const tessel_greedy_params *params,
@@ -263,7 +543,7 @@ tessel_status tessel_mpi_reconstruct_greedy(MPI_Comm comm, const tessel_cloud *c
     ranks r = tsl_mpi_ranks(comm, p.threads);
     if (r.rank != 0)
         return tsl_mpi_final(&r, tsl_mpi_serve(&r));
-    tsl_gp_tile_runner runner = {run_ranks, &r};
+    tsl_gp_tile_runner runner = {run_ranks, run_seams, &r};
     /* After the tiles the processes beside process 0 on its machine wait
      * without a core: it takes their threads for the seams, the orientation
      * check and the flips (the mesh does not depend on it). */
@@ -287,7 +567,7 @@ tessel_status tessel_mpi_reconstruct_greedy_file(
             memset(diag, 0, sizeof *diag);
         return tsl_mpi_final(&r, tsl_mpi_serve(&r));
     }
-    tsl_gp_tile_runner runner = {run_ranks, &r};
+    tsl_gp_tile_runner runner = {run_ranks, run_seams, &r};
     /* Between the slabs' tiles the others wait without a core, as in
      * tessel_mpi_reconstruct_greedy. */
     p.threads = r.last_threads;

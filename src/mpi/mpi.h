@@ -48,12 +48,12 @@ static inline int tsl_mpi_owner(const ranks *r, size_t k)
 }
 
 /* What process 0 says when it hands out tiles, or when it is done. */
-enum { TILES_DONE = 0, TILES_GREEDY = 1, TILES_FRONT = 2 };
+enum { TILES_DONE = 0, TILES_GREEDY = 1, TILES_FRONT = 2, TILES_SEAMS = 3 };
 typedef struct tiles_head {
     int32_t status, kind, normals, lines, has_viewpoint;
     uint32_t k;          /* front: neighbours per point */
-    uint64_t count;      /* tiles */
-    double offset[3], viewpoint[3]; /* greedy: the cloud's, kept by a tile's copy */
+    uint64_t count;      /* tiles (seams: groups) */
+    double offset[3], viewpoint[3]; /* greedy, seams: the cloud's, kept by a tile's copy */
     double cell;         /* front: the triangle grid's cell */
     tessel_front_params front; /* front: the parameters it runs with */
 } tiles_head;
@@ -80,8 +80,10 @@ tessel_status tsl_mpi_final(const ranks *r, tessel_status mine);
 /* Process 0's end of a method: done with tiles, then its final status. */
 tessel_status tsl_mpi_done(const ranks *r, tessel_status st);
 
-/* The tiles of each kind, on a process other than 0 (greedy.c, front.c). */
+/* The tiles of each kind, on a process other than 0 (greedy.c, front.c);
+ * the groups of a level of greedy seams (greedy.c). */
 tessel_status tsl_mpi_serve_greedy(const ranks *r, const tiles_head *h);
+tessel_status tsl_mpi_serve_seams(const ranks *r, const tiles_head *h);
 tessel_status tsl_mpi_serve_front(const ranks *r, const tiles_head *h);
 
 #endif
