@@ -43,8 +43,9 @@ TESSEL_API tessel_status tessel_mpi_cloud_read(MPI_Comm comm, int root, const ch
  * meshed by all processes of comm: process 0, which alone holds the cloud
  * (the others' may be empty: they receive the points of their tiles), sends
  * tile k to process k mod size, which meshes its tiles on params->threads
- * threads and sends them back; process 0 then joins them (seams,
- * orientation check, flips) while the others wait without spinning: on
+ * threads and sends them back, and the groups of each level of seams the
+ * same way; process 0 then joins them (orientation check, flips) while the
+ * others wait without spinning: on
  * params->threads (0: OpenMP's default) times the processes of comm on its
  * machine, at most the cores it may run on (omp_get_num_procs). Only
  * process 0's sink receives triangles and only its summary is filled; the

@@ -2,9 +2,10 @@
  * meshes as one process does (src/greedy/tiles.c) with a runner that sends
  * each tile's points to process k mod size, which meshes the tile
  * (tsl_gp_tile_mesh_cloud) and sends back its triangles in the tile's
- * numbering; process 0 then closes the seams, checks the orientation and
- * flips the diagonals alone: the same bytes for any number of processes.
- * Out of core (src/outofcore/) the same runner meshes each slab's tiles. */
+ * numbering. The seams' groups of each level go out and come back the same
+ * way; process 0 then checks the orientation and flips the diagonals
+ * alone: the same bytes for any number of processes. Out of core
+ * (src/outofcore/) the same runner meshes each slab's tiles and seams. */
 #include "greedy/greedy.h"
 #include "mpi/mpi.h"
 #include "tessel_mpi.h"
