@@ -81,9 +81,9 @@ ranks tsl_mpi_ranks(MPI_Comm comm, int threads)
     return r;
 }
 
-tessel_status tsl_mpi_each_mine(const ranks *r, size_t count,
-                                tessel_status (*tile)(const void *job, size_t k),
-                                const void *job)
+/* Items 0 .. count), those of this process only when mine. */
+static tessel_status each(const ranks *r, size_t count, bool mine,
+                          tessel_status (*one)(const void *ctx, size_t k), const void *ctx)
 {
     tessel_status *status = tsl_alloc_array(count + 1, sizeof *status);
     if (!status)
@@ -92,13 +92,26 @@ tessel_status tsl_mpi_each_mine(const ranks *r, size_t count,
 #pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
     for (long long kk = 0; kk < n; kk++) {
         size_t k = (size_t)kk;
-        status[k] = tsl_mpi_owner(r, k) == r->rank ? tile(job, k) : TESSEL_OK;
+        status[k] = !mine || tsl_mpi_owner(r, k) == r->rank ? one(ctx, k) : TESSEL_OK;
     }
     tessel_status st = TESSEL_OK;
     for (size_t k = 0; k < count && !st; k++)
         st = status[k];
     free(status);
     return st;
+}
+
+tessel_status tsl_mpi_each_mine(const ranks *r, size_t count,
+                                tessel_status (*tile)(const void *job, size_t k),
+                                const void *job)
+{
+    return each(r, count, true, tile, job);
+}
+
+tessel_status tsl_mpi_each(const ranks *r, size_t count,
+                           tessel_status (*one)(const void *ctx, size_t j), const void *ctx)
+{
+    return each(r, count, false, one, ctx);
 }
 
 tiles_head tsl_mpi_head(const ranks *r, tiles_head h)

@@ -183,25 +183,19 @@ static tessel_status own_alloc(const ranks *r, const tiles_head *h, const uint64
     return TESSEL_OK;
 }
 
-static tessel_status mesh_own(const ranks *r, const tessel_greedy_params *params, own_tiles *o)
+/* Own tile j: its mesh; its points are freed once meshed. */
+typedef struct own_ctx {
+    own_tiles *o;
+    tessel_greedy_params params; /* tile_points 0 */
+} own_ctx;
+
+static tessel_status mesh_own(const void *ctx, size_t j)
 {
-    tessel_status *status = tsl_alloc_array(o->count + 1, sizeof *status);
-    if (!status)
-        return TESSEL_ERR_NOMEM;
-    tessel_greedy_params tp = *params;
-    tp.tile_points = 0;
-    long long count = (long long)o->count;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
-    for (long long jj = 0; jj < count; jj++) {
-        size_t j = (size_t)jj;
-        status[j] = tsl_gp_tile_mesh_cloud(&o->cloud[j], &tp, NULL, &o->parts[j], o->fate[j],
-                                           &o->sums[j]);
-        tessel_cloud_free(&o->cloud[j]);
-    }
-    tessel_status st = TESSEL_OK;
-    for (size_t j = 0; j < o->count && !st; j++)
-        st = status[j];
-    free(status);
+    const own_ctx *c = ctx;
+    own_tiles *o = c->o;
+    tessel_status st = tsl_gp_tile_mesh_cloud(&o->cloud[j], &c->params, NULL, &o->parts[j],
+                                              o->fate[j], &o->sums[j]);
+    tessel_cloud_free(&o->cloud[j]);
     return st;
 }
 
@@ -227,8 +221,11 @@ tessel_status tsl_mpi_serve_greedy(const ranks *r, const tiles_head *head)
             tsl_mpi_move(r->comm, 0, r->rank, o.cloud[j].normals, 3 * m, MPI_FLOAT,
                        sizeof(float));
     }
-    if (st == TESSEL_OK)
-        st = tsl_mpi_agree(r->comm, mesh_own(r, &params, &o));
+    if (st == TESSEL_OK) {
+        own_ctx c = {&o, params};
+        c.params.tile_points = 0;
+        st = tsl_mpi_agree(r->comm, tsl_mpi_each(r, o.count, mesh_own, &c));
+    }
     uint64_t *counts = NULL;
     if (st == TESSEL_OK) {
         counts = tsl_calloc_array((size_t)h.count, sizeof *counts);
@@ -464,25 +461,22 @@ static tessel_status groups_alloc(const ranks *r, const tiles_head *h, const uin
     return TESSEL_OK;
 }
 
-static tessel_status groups_run(const ranks *r, const tessel_greedy_params *params,
-                                const uint64_t *sizes, own_groups *o)
+/* Own group j: its front; its points are freed once it has run. */
+typedef struct groups_ctx {
+    own_groups *o;
+    const tessel_greedy_params *params;
+    const uint64_t *sizes;
+} groups_ctx;
+
+static tessel_status group_run(const void *ctx, size_t j)
 {
-    tessel_status *status = tsl_alloc_array(o->count + 1, sizeof *status);
-    if (!status)
-        return TESSEL_ERR_NOMEM;
-    long long count = (long long)o->count;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
-    for (long long jj = 0; jj < count; jj++) {
-        size_t j = (size_t)jj, ni = (size_t)sizes[2 * o->i[j] + 1];
-        status[j] = tsl_gp_front_local(&o->cloud[j], o->inside[j], ni, o->frozen[j], params, true,
-                                       "greedy: seams", NULL, &o->more[j], o->fate[j],
-                                       &o->sums[j]);
-        tessel_cloud_free(&o->cloud[j]);
-    }
-    tessel_status st = TESSEL_OK;
-    for (size_t j = 0; j < o->count && !st; j++)
-        st = status[j];
-    free(status);
+    const groups_ctx *c = ctx;
+    own_groups *o = c->o;
+    size_t ni = (size_t)c->sizes[2 * o->i[j] + 1];
+    tessel_status st = tsl_gp_front_local(&o->cloud[j], o->inside[j], ni, o->frozen[j], c->params,
+                                          true, "greedy: seams", NULL, &o->more[j], o->fate[j],
+                                          &o->sums[j]);
+    tessel_cloud_free(&o->cloud[j]);
     return st;
 }
 
@@ -509,8 +503,10 @@ tessel_status tsl_mpi_serve_seams(const ranks *r, const tiles_head *head)
         tsl_mpi_move(r->comm, 0, r->rank, o.inside[j], 3 * ni, MPI_UINT32_T, sizeof(uint32_t));
         tsl_mpi_move(r->comm, 0, r->rank, o.frozen[j], m, MPI_BYTE, 1);
     }
-    if (st == TESSEL_OK)
-        st = tsl_mpi_agree(r->comm, groups_run(r, &params, sizes, &o));
+    if (st == TESSEL_OK) {
+        groups_ctx c = {&o, &params, sizes};
+        st = tsl_mpi_agree(r->comm, tsl_mpi_each(r, o.count, group_run, &c));
+    }
     if (st == TESSEL_OK) { /* receive_groups' counts */
         counts = tsl_calloc_array(ng + 1, sizeof *counts);
         st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);

@@ -65,6 +65,10 @@ typedef struct tiles_head {
 tessel_status tsl_mpi_each_mine(const ranks *r, size_t count,
                                 tessel_status (*tile)(const void *job, size_t k),
                                 const void *job);
+/* one(ctx, j) for every j < count, on r->tile_threads threads (a process's
+ * own tiles or groups, numbered among themselves); the first failure. */
+tessel_status tsl_mpi_each(const ranks *r, size_t count,
+                           tessel_status (*one)(const void *ctx, size_t j), const void *ctx);
 /* Process 0's head to all (the others pass anything). */
 tiles_head tsl_mpi_head(const ranks *r, tiles_head h);
 /* count + 1 sizes or offsets from process 0 (from) to all, into *out. */
