@@ -121,6 +121,23 @@ static tessel_status run_ranks(void *ctx, const tsl_af_tiles_job *job)
 
 /* ---- the other processes ---- */
 
+/* Own tile j of a serving process: its front. */
+typedef struct own_fronts {
+    const ranks *r;
+    const tiles_head *h;
+    af *tiles;
+    uint32_t **start;
+    const uint64_t *sfrom;
+} own_fronts;
+
+static tessel_status run_own(const void *ctx, size_t j)
+{
+    const own_fronts *o = ctx;
+    size_t k = (size_t)o->r->rank + j * (size_t)o->r->size;
+    return tsl_af_tile_run(&o->tiles[j], o->h->cell, o->start[j],
+                           (size_t)(o->sfrom[k + 1] - o->sfrom[k]), NULL);
+}
+
 /* This process's tiles of h (their point ranges and starting triangles'
  * offsets), received one by one, run on its threads, sent back. */
 tessel_status tsl_mpi_serve_front(const ranks *r, const tiles_head *h)
@@ -130,7 +147,6 @@ tessel_status tsl_mpi_serve_front(const ranks *r, const tiles_head *h)
     uint64_t *range = NULL, *sfrom = NULL, *counts = NULL;
     af *tiles = NULL;
     uint32_t **start = NULL;
-    tessel_status *status = NULL;
     /* Every failure below is agreed: process 0 stops at the same step. */
     tessel_status st = tsl_mpi_bcast_sizes(r, nt, NULL, &range);
     if (st == TESSEL_OK)
@@ -158,18 +174,8 @@ tessel_status tsl_mpi_serve_front(const ranks *r, const tiles_head *h)
             j++;
         }
     }
-    status = tsl_alloc_array(mine + 1, sizeof *status);
-    long long count = status ? (long long)mine : 0;
-#pragma omp parallel for schedule(dynamic, 1) num_threads(tsl_threads(r->tile_threads))
-    for (long long jj = 0; jj < count; jj++) {
-        size_t j = (size_t)jj, k = (size_t)r->rank + j * (size_t)r->size;
-        status[j] = tsl_af_tile_run(&tiles[j], h->cell, start[j],
-                                    (size_t)(sfrom[k + 1] - sfrom[k]), NULL);
-    }
-    st = status ? TESSEL_OK : TESSEL_ERR_NOMEM;
-    for (size_t j = 0; status && j < mine && !st; j++)
-        st = status[j];
-    if ((st = tsl_mpi_agree(r->comm, st)) != TESSEL_OK)
+    own_fronts o = {r, h, tiles, start, sfrom};
+    if ((st = tsl_mpi_agree(r->comm, tsl_mpi_each(r, mine, run_own, &o))) != TESSEL_OK)
         goto done;
     counts = tsl_calloc_array(nt + 1, sizeof *counts);
     if ((st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM)) != TESSEL_OK)
@@ -186,7 +192,6 @@ done:
         tsl_af_free(&tiles[j]);
         free(start[j]);
     }
-    free(status);
     free(counts);
     free(tiles);
     free(start);
