@@ -7,11 +7,13 @@
 # (the result must not depend on threads or processes), and the summary's
 # boundary edges and components reported. One line per run, tab-separated,
 # on stdout; the speed-up column is the run's wall time against the same
-# cloud's one-thread run. The last run of each cloud is out of core
-# (--memory OOC_MEMORY, default 2G; docs/outofcore.md): its mesh differs
-# from the others by construction (same_bytes "-"), and its boundary edges
-# and components come from tessel check, with "valid" when the mesh is
-# manifold, oriented and free of self-intersections.
+# cloud's one-thread run. The last runs of each cloud are out of core
+# (--memory OOC_MEMORY, default 2G; docs/outofcore.md), on 2 threads and
+# (with tessel-mpi) on 2 processes: the first one's mesh differs from the
+# in-core ones by construction (same_bytes "-"), and its boundary edges and
+# components come from tessel check, with "valid" when the mesh is
+# manifold, oriented and free of self-intersections; the processes' mesh
+# is compared with it byte for byte.
 #
 # Usage: bench/scale_grid.sh BUILD DATA [SIZES] [MESHES] [RUNS]
 #   BUILD    build folder holding tessel (and tessel-mpi)
@@ -57,7 +59,8 @@ for mesh in $meshes; do
         cloud=$tmp/cloud.ply
         "$tessel" sample "$data/$mesh.gt.ply" "$n" "$cloud" --no-normals --quiet
         base=""
-        for how in threads1 threads2 mpi2 outofcore; do
+        rm -f "$tmp/ooc.ply"
+        for how in threads1 threads2 mpi2 outofcore outofcore_mpi2; do
             case $how in
             threads1) run "$tessel" reconstruct "$cloud" "$tmp/out.ply" --method greedy --threads 1 --json ;;
             threads2) run "$tessel" reconstruct "$cloud" "$tmp/out.ply" --method greedy --threads 2 --json ;;
@@ -66,7 +69,12 @@ for mesh in $meshes; do
                 # shellcheck disable=SC2086
                 run $mpi reconstruct "$cloud" "$tmp/out.ply" --threads 1 --json
                 ;;
-            outofcore) run "$tessel" reconstruct "$cloud" "$tmp/out.ply" --method greedy --memory "$ooc_memory" --json ;;
+            outofcore) run "$tessel" reconstruct "$cloud" "$tmp/out.ply" --method greedy --memory "$ooc_memory" --threads 2 --json ;;
+            outofcore_mpi2)
+                [ -n "$mpi" ] || continue
+                # shellcheck disable=SC2086
+                run $mpi reconstruct "$cloud" "$tmp/out.ply" --memory "$ooc_memory" --threads 1 --json
+                ;;
             esac
             if [ ! -s "$tmp/out.ply" ]; then
                 printf '%s\t%s\t%s\t%s\tfailed\n' "$mesh" "$n" "$how" "$secs"
@@ -75,6 +83,11 @@ for mesh in $meshes; do
             if [ "$how" = outofcore ]; then
                 "$tessel" check "$tmp/out.ply" --json >"$tmp/summary" 2>/dev/null || true
                 grep -q '"valid": true' "$tmp/summary" && same="- valid" || same="- INVALID"
+                cp "$tmp/summary" "$tmp/ooc_check"
+                mv "$tmp/out.ply" "$tmp/ooc.ply"
+            elif [ "$how" = outofcore_mpi2 ]; then
+                cmp -s "$tmp/out.ply" "$tmp/ooc.ply" && same=yes || same=NO
+                cp "$tmp/ooc_check" "$tmp/summary"
             elif [ -z "$base" ]; then
                 base=$secs
                 mv "$tmp/out.ply" "$tmp/first.ply"
