@@ -128,10 +128,12 @@ static tessel_status run_ranks(void *ctx, const tsl_gp_tiles_job *job)
 
 /* ---- the other processes ---- */
 
-/* A process's own tiles: their points as received, their meshes. */
+/* A process's own tiles (or seam groups): their points as received, what
+ * their fronts give. */
 typedef struct own_tiles {
     size_t count;        /* tiles of this process */
     size_t *k;           /* their numbers */
+    size_t *points;      /* their points' counts */
     tessel_cloud *cloud; /* their points, in the tile's order */
     gp_collect *parts;
     tessel_recon_summary *sums;
@@ -149,6 +151,7 @@ static void own_free(own_tiles *o)
             free(o->fate[j]);
     }
     free(o->k);
+    free(o->points);
     free(o->cloud);
     free(o->parts);
     free(o->sums);
@@ -156,31 +159,70 @@ static void own_free(own_tiles *o)
     memset(o, 0, sizeof *o);
 }
 
+/* Room for count own tiles. */
+static tessel_status own_room(own_tiles *o, size_t count)
+{
+    o->count = count;
+    o->k = tsl_calloc_array(count + 1, sizeof *o->k);
+    o->points = tsl_calloc_array(count + 1, sizeof *o->points);
+    o->cloud = tsl_calloc_array(count + 1, sizeof *o->cloud);
+    o->parts = tsl_calloc_array(count + 1, sizeof *o->parts);
+    o->sums = tsl_calloc_array(count + 1, sizeof *o->sums);
+    o->fate = tsl_calloc_array(count + 1, sizeof *o->fate);
+    return o->k && o->points && o->cloud && o->parts && o->sums && o->fate ? TESSEL_OK
+                                                                           : TESSEL_ERR_NOMEM;
+}
+
+/* Own tile j is tile k of h, of m points: room for its points and fates. */
+static tessel_status own_tile(own_tiles *o, size_t j, size_t k, size_t m, const tiles_head *h)
+{
+    tessel_cloud *c = &o->cloud[j];
+    o->k[j] = k;
+    o->points[j] = m;
+    if (tessel_cloud_alloc(c, m, h->normals, 0) != TESSEL_OK ||
+        !(o->fate[j] = tsl_alloc_array(m + 1, 1)))
+        return TESSEL_ERR_NOMEM;
+    memcpy(c->offset, h->offset, sizeof c->offset);
+    memcpy(c->viewpoint, h->viewpoint, sizeof c->viewpoint);
+    c->has_viewpoint = h->has_viewpoint;
+    return TESSEL_OK;
+}
+
 /* Room for this process's tiles of h (starts: their point ranges). */
 static tessel_status own_alloc(const ranks *r, const tiles_head *h, const uint64_t *start,
                                own_tiles *o)
 {
     size_t nt = (size_t)h->count;
-    o->count = nt / (size_t)r->size + (nt % (size_t)r->size > (size_t)r->rank);
-    o->k = tsl_calloc_array(o->count + 1, sizeof *o->k);
-    o->cloud = tsl_calloc_array(o->count + 1, sizeof *o->cloud);
-    o->parts = tsl_calloc_array(o->count + 1, sizeof *o->parts);
-    o->sums = tsl_calloc_array(o->count + 1, sizeof *o->sums);
-    o->fate = tsl_calloc_array(o->count + 1, sizeof *o->fate);
-    if (!o->k || !o->cloud || !o->parts || !o->sums || !o->fate)
-        return TESSEL_ERR_NOMEM;
-    for (size_t j = 0; j < o->count; j++) {
-        size_t k = (size_t)r->rank + j * (size_t)r->size, m = (size_t)(start[k + 1] - start[k]);
-        o->k[j] = k;
-        tessel_cloud *c = &o->cloud[j];
-        if (tessel_cloud_alloc(c, m, h->normals, 0) != TESSEL_OK ||
-            !(o->fate[j] = tsl_alloc_array(m + 1, 1)))
-            return TESSEL_ERR_NOMEM;
-        memcpy(c->offset, h->offset, sizeof c->offset);
-        memcpy(c->viewpoint, h->viewpoint, sizeof c->viewpoint);
-        c->has_viewpoint = h->has_viewpoint;
+    tessel_status st =
+        own_room(o, nt / (size_t)r->size + (nt % (size_t)r->size > (size_t)r->rank));
+    for (size_t j = 0; st == TESSEL_OK && j < o->count; j++) {
+        size_t k = (size_t)r->rank + j * (size_t)r->size;
+        st = own_tile(o, j, k, (size_t)(start[k + 1] - start[k]), h);
     }
-    return TESSEL_OK;
+    return st;
+}
+
+/* The own tiles' results to process 0 (the other side of receive_tiles
+ * and receive_groups): the triangle counts of all nt summed, then each
+ * tile's triangles, summary and fates. */
+static tessel_status own_return(const ranks *r, const own_tiles *o, size_t nt)
+{
+    uint64_t *counts = tsl_calloc_array(nt + 1, sizeof *counts);
+    tessel_status st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);
+    if (st == TESSEL_OK) {
+        for (size_t j = 0; j < o->count; j++)
+            counts[o->k[j]] = o->parts[j].count;
+        tsl_mpi_sum_counts(r, counts, nt);
+        st = tsl_mpi_agree(r->comm, TESSEL_OK); /* process 0's room */
+    }
+    for (size_t j = 0; st == TESSEL_OK && j < o->count; j++) {
+        tsl_mpi_move(r->comm, r->rank, 0, o->parts[j].tris, 3 * o->parts[j].count,
+                     MPI_UINT32_T, sizeof(uint32_t));
+        tsl_mpi_move(r->comm, r->rank, 0, &o->sums[j], sizeof o->sums[j], MPI_BYTE, 1);
+        tsl_mpi_move(r->comm, r->rank, 0, o->fate[j], o->points[j], MPI_BYTE, 1);
+    }
+    free(counts);
+    return st;
 }
 
 /* Own tile j: its mesh; its points are freed once meshed. */
@@ -226,25 +268,8 @@ tessel_status tsl_mpi_serve_greedy(const ranks *r, const tiles_head *head)
         c.params.tile_points = 0;
         st = tsl_mpi_agree(r->comm, tsl_mpi_each(r, o.count, mesh_own, &c));
     }
-    uint64_t *counts = NULL;
-    if (st == TESSEL_OK) {
-        counts = tsl_calloc_array((size_t)h.count, sizeof *counts);
-        st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);
-    }
-    if (st == TESSEL_OK) {
-        for (size_t j = 0; j < o.count; j++)
-            counts[o.k[j]] = o.parts[j].count;
-        tsl_mpi_sum_counts(r, counts, (size_t)h.count);
-        st = tsl_mpi_agree(r->comm, TESSEL_OK); /* receive_tiles' room */
-    }
-    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
-        size_t m = (size_t)(start[o.k[j] + 1] - start[o.k[j]]);
-        tsl_mpi_move(r->comm, r->rank, 0, o.parts[j].tris, 3 * o.parts[j].count, MPI_UINT32_T,
-                   sizeof(uint32_t));
-        tsl_mpi_move(r->comm, r->rank, 0, &o.sums[j], sizeof o.sums[j], MPI_BYTE, 1);
-        tsl_mpi_move(r->comm, r->rank, 0, o.fate[j], m, MPI_BYTE, 1);
-    }
-    free(counts);
+    if (st == TESSEL_OK)
+        st = own_return(r, &o, (size_t)h.count);
     free(start);
     own_free(&o);
     return st;
@@ -391,74 +416,51 @@ static tessel_status run_seams(void *ctx, const tsl_gp_seams_job *job)
     return st;
 }
 
-/* A process's own groups of a level: their points as received, what their
- * fronts give. */
+/* A process's own groups of a level: as own tiles, with the triangles that
+ * resume each front and its frozen flags. */
 typedef struct own_groups {
-    size_t count;
-    size_t *i;            /* their numbers */
-    tessel_cloud *cloud;  /* their points */
+    own_tiles t;
     uint32_t **inside;
-    uint8_t **frozen, **fate;
-    gp_collect *more;
-    tessel_recon_summary *sums;
+    uint8_t **frozen;
 } own_groups;
 
 static void groups_free(own_groups *o)
 {
-    for (size_t j = 0; j < o->count; j++) {
-        if (o->cloud)
-            tessel_cloud_free(&o->cloud[j]);
+    for (size_t j = 0; j < o->t.count; j++) {
         if (o->inside)
             free(o->inside[j]);
         if (o->frozen)
             free(o->frozen[j]);
-        if (o->fate)
-            free(o->fate[j]);
-        if (o->more)
-            free(o->more[j].tris);
     }
-    free(o->i);
-    free(o->cloud);
     free(o->inside);
     free(o->frozen);
-    free(o->fate);
-    free(o->more);
-    free(o->sums);
+    own_free(&o->t);
     memset(o, 0, sizeof *o);
 }
 
 static tessel_status groups_alloc(const ranks *r, const tiles_head *h, const uint64_t *sizes,
                                   own_groups *o)
 {
-    size_t ng = (size_t)h->count;
+    size_t ng = (size_t)h->count, count = 0;
     for (size_t i = 0; i < ng; i++)
-        o->count += tsl_mpi_owner(r, i) == r->rank && remote_group(r, sizes, i);
-    size_t n = o->count + 1;
-    o->i = tsl_calloc_array(n, sizeof *o->i);
-    o->cloud = tsl_calloc_array(n, sizeof *o->cloud);
-    o->inside = tsl_calloc_array(n, sizeof *o->inside);
-    o->frozen = tsl_calloc_array(n, sizeof *o->frozen);
-    o->fate = tsl_calloc_array(n, sizeof *o->fate);
-    o->more = tsl_calloc_array(n, sizeof *o->more);
-    o->sums = tsl_calloc_array(n, sizeof *o->sums);
-    if (!o->i || !o->cloud || !o->inside || !o->frozen || !o->fate || !o->more || !o->sums)
-        return TESSEL_ERR_NOMEM;
-    for (size_t i = 0, j = 0; i < ng; i++) {
+        count += tsl_mpi_owner(r, i) == r->rank && remote_group(r, sizes, i);
+    tessel_status st = own_room(&o->t, count);
+    o->inside = tsl_calloc_array(count + 1, sizeof *o->inside);
+    o->frozen = tsl_calloc_array(count + 1, sizeof *o->frozen);
+    if (!o->inside || !o->frozen)
+        st = TESSEL_ERR_NOMEM;
+    for (size_t i = 0, j = 0; st == TESSEL_OK && i < ng; i++) {
         if (tsl_mpi_owner(r, i) != r->rank || !remote_group(r, sizes, i))
             continue;
         size_t m = (size_t)sizes[2 * i], ni = (size_t)sizes[2 * i + 1];
-        tessel_cloud *c = &o->cloud[j];
-        o->i[j] = i;
-        if (tessel_cloud_alloc(c, m, h->normals, 0) != TESSEL_OK ||
-            !(o->inside[j] = tsl_alloc_array(3 * ni + 1, sizeof **o->inside)) ||
-            !(o->frozen[j] = tsl_alloc_array(m, 1)) || !(o->fate[j] = tsl_alloc_array(m, 1)))
-            return TESSEL_ERR_NOMEM;
-        memcpy(c->offset, h->offset, sizeof c->offset);
-        memcpy(c->viewpoint, h->viewpoint, sizeof c->viewpoint);
-        c->has_viewpoint = h->has_viewpoint;
+        st = own_tile(&o->t, j, i, m, h);
+        if (st == TESSEL_OK &&
+            (!(o->inside[j] = tsl_alloc_array(3 * ni + 1, sizeof **o->inside)) ||
+             !(o->frozen[j] = tsl_alloc_array(m, 1))))
+            st = TESSEL_ERR_NOMEM;
         j++;
     }
-    return TESSEL_OK;
+    return st;
 }
 
 /* Own group j: its front; its points are freed once it has run. */
@@ -472,11 +474,12 @@ static tessel_status group_run(const void *ctx, size_t j)
 {
     const groups_ctx *c = ctx;
     own_groups *o = c->o;
-    size_t ni = (size_t)c->sizes[2 * o->i[j] + 1];
-    tessel_status st = tsl_gp_front_local(&o->cloud[j], o->inside[j], ni, o->frozen[j], c->params,
-                                          true, "greedy: seams", NULL, &o->more[j], o->fate[j],
-                                          &o->sums[j]);
-    tessel_cloud_free(&o->cloud[j]);
+    own_tiles *t = &o->t;
+    size_t ni = (size_t)c->sizes[2 * t->k[j] + 1];
+    tessel_status st = tsl_gp_front_local(&t->cloud[j], o->inside[j], ni, o->frozen[j], c->params,
+                                          true, "greedy: seams", NULL, &t->parts[j], t->fate[j],
+                                          &t->sums[j]);
+    tessel_cloud_free(&t->cloud[j]);
     return st;
 }
 
@@ -489,42 +492,26 @@ tessel_status tsl_mpi_serve_seams(const ranks *r, const tiles_head *head)
     params.existing = NULL; /* process 0's pointers */
     params.frozen = NULL;
     size_t ng = (size_t)head->count;
-    uint64_t *sizes = NULL, *counts = NULL;
+    uint64_t *sizes = NULL;
     own_groups o = {0};
     tessel_status st = bcast_group_sizes(r, ng, NULL, &sizes);
     if (st == TESSEL_OK) /* send_groups' agreement */
         st = tsl_mpi_agree(r->comm, groups_alloc(r, head, sizes, &o));
-    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
-        size_t m = (size_t)sizes[2 * o.i[j]], ni = (size_t)sizes[2 * o.i[j] + 1];
-        tsl_mpi_move(r->comm, 0, r->rank, o.cloud[j].xyz, 3 * m, MPI_FLOAT, sizeof(float));
+    for (size_t j = 0; st == TESSEL_OK && j < o.t.count; j++) {
+        size_t m = o.t.points[j], ni = (size_t)sizes[2 * o.t.k[j] + 1];
+        tsl_mpi_move(r->comm, 0, r->rank, o.t.cloud[j].xyz, 3 * m, MPI_FLOAT, sizeof(float));
         if (head->normals)
-            tsl_mpi_move(r->comm, 0, r->rank, o.cloud[j].normals, 3 * m, MPI_FLOAT,
+            tsl_mpi_move(r->comm, 0, r->rank, o.t.cloud[j].normals, 3 * m, MPI_FLOAT,
                          sizeof(float));
         tsl_mpi_move(r->comm, 0, r->rank, o.inside[j], 3 * ni, MPI_UINT32_T, sizeof(uint32_t));
         tsl_mpi_move(r->comm, 0, r->rank, o.frozen[j], m, MPI_BYTE, 1);
     }
     if (st == TESSEL_OK) {
         groups_ctx c = {&o, &params, sizes};
-        st = tsl_mpi_agree(r->comm, tsl_mpi_each(r, o.count, group_run, &c));
+        st = tsl_mpi_agree(r->comm, tsl_mpi_each(r, o.t.count, group_run, &c));
     }
-    if (st == TESSEL_OK) { /* receive_groups' counts */
-        counts = tsl_calloc_array(ng + 1, sizeof *counts);
-        st = tsl_mpi_agree(r->comm, counts ? TESSEL_OK : TESSEL_ERR_NOMEM);
-    }
-    if (st == TESSEL_OK) {
-        for (size_t j = 0; j < o.count; j++)
-            counts[o.i[j]] = o.more[j].count;
-        tsl_mpi_sum_counts(r, counts, ng);
-        st = tsl_mpi_agree(r->comm, TESSEL_OK); /* receive_groups' room */
-    }
-    for (size_t j = 0; st == TESSEL_OK && j < o.count; j++) {
-        size_t m = (size_t)sizes[2 * o.i[j]];
-        tsl_mpi_move(r->comm, r->rank, 0, o.more[j].tris, 3 * o.more[j].count, MPI_UINT32_T,
-                     sizeof(uint32_t));
-        tsl_mpi_move(r->comm, r->rank, 0, &o.sums[j], sizeof o.sums[j], MPI_BYTE, 1);
-        tsl_mpi_move(r->comm, r->rank, 0, o.fate[j], m, MPI_BYTE, 1);
-    }
-    free(counts);
+    if (st == TESSEL_OK)
+        st = own_return(r, &o.t, ng);
     free(sizes);
     groups_free(&o);
     return st;
